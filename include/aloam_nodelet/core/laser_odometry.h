@@ -1,0 +1,110 @@
+// LOAM laser odometry: scan-to-scan edge and plane matching against the previous sweep.
+#pragma once
+
+#include <memory>
+
+#include <pcl/kdtree/kdtree_flann.h>
+
+#include "aloam_nodelet/core/feature_set.h"
+#include "aloam_nodelet/core/pose.h"
+
+namespace aloam
+{
+struct LaserOdometryConfig
+{
+  int max_iterations = 4;               ///< Ceres iterations per solve
+  int outer_iterations = 2;             ///< correspondence searches per sweep, each followed by a solve
+  double distance_sq_threshold = 25.0;  ///< nearest neighbour farther than this (m^2) is no match
+  double nearby_scan = 2.5;             ///< rings searched on each side for the second/third point
+  bool deskew = false;                  ///< correct motion within the sweep (needs per-point time)
+  bool constant_velocity = true;        ///< start each solve from the previous sweep's motion
+  double huber_delta = 0.1;             ///< robust loss scale (m)
+  int min_correspondences = 10;         ///< fewer matches: keep the motion prior, report degraded
+  int min_last_corners = 10;            ///< previous sweep needs this many edge points to match against
+  int min_last_surfs = 100;             ///< ... and this many plane points
+  double max_translation_per_sweep = 10.0;  ///< a larger solved motion is rejected as divergent (m)
+  /// Degeneracy: weaker constraint than this (PoseProblem::constraintStrength, rotations as the motion of
+  /// a point constraint_lever_arm metres away) keeps the motion prior.
+  double min_constraint = 10.0;
+  double constraint_lever_arm = 10.0;
+};
+
+enum class OdometryStatus
+{
+  kInitialized,  ///< first sweep: pose is identity, nothing to match yet
+  kOk,
+  kDegraded,     ///< too few or degenerate correspondences, or a divergent solve: the motion prior was used
+};
+
+/// One sweep's odometry: the pose and the clouds mapping needs, in the sensor frame at the sweep end.
+struct OdometryFrame
+{
+  double stamp = 0.0;
+  Pose pose;             ///< odometry world <- sensor at the sweep end
+  Pose motion;           ///< previous sweep end <- this sweep end
+  OdometryStatus status = OdometryStatus::kInitialized;
+  int corner_matches = 0;
+  int plane_matches = 0;
+  double constraint = 0.0;  ///< how well the matches pin the motion down (0: degenerate)
+  /// The clouds still carry motion distortion that deskewing was asked to remove: the first sweep,
+  /// whose motion is unknown. Mapping does not build its map from such clouds.
+  bool distorted = false;
+  std::shared_ptr<const Cloud> corners;  ///< less sharp points
+  std::shared_ptr<const Cloud> surfs;    ///< less flat points
+  std::shared_ptr<const Cloud> full;     ///< every point
+};
+
+class LaserOdometry
+{
+public:
+  explicit LaserOdometry(LaserOdometryConfig config = {});
+
+  const LaserOdometryConfig& config() const { return config_; }
+  void setConfig(const LaserOdometryConfig& config) { config_ = config; }
+
+  /// Matches `features` against the previous sweep and returns the new pose. The frame shares the
+  /// clouds of `features` when no deskewing is done (no copy).
+  OdometryFrame process(const std::shared_ptr<const FeatureSet>& features);
+
+  /// Forgets the previous sweep and the pose; the next sweep starts a new trajectory at identity.
+  void reset();
+  /// Forgets the motion prior only (e.g. after a gap in the data).
+  void resetMotionPrior() { motion_ = Pose(); }
+  bool initialized() const { return last_corners_ != nullptr; }
+  const Pose& pose() const { return pose_; }
+
+private:
+  struct Matches
+  {
+    int corners = 0;
+    int planes = 0;
+    double constraint = 0.0;
+  };
+
+  LaserOdometryConfig config_;
+  Pose pose_;    // world <- current sweep end
+  Pose motion_;  // last sweep end <- current sweep end (the constant-velocity prior)
+  std::shared_ptr<const Cloud> last_corners_;
+  std::shared_ptr<const Cloud> last_surfs_;
+  bool last_distorted_ = false;  // the previous sweep's clouds could not be deskewed
+  std::vector<int> last_corner_ring_begin_;
+  std::vector<int> last_surf_ring_begin_;
+  pcl::KdTreeFLANN<Point> corner_tree_;
+  pcl::KdTreeFLANN<Point> surf_tree_;
+
+  Matches solve(const Cloud& sharp, const Cloud& flat, Pose& motion) const;
+  std::shared_ptr<const Cloud> toSweepEnd(const std::shared_ptr<const FeatureSet>& owner, const Cloud& cloud,
+                                          const Pose& motion) const;
+  void keepAsLast(std::shared_ptr<const Cloud> corners, std::shared_ptr<const Cloud> surfs);
+};
+
+/// Moves every point of `in` (taken at its `time` within a sweep of `scan_period` seconds, during which
+/// the sensor moved by `motion`: sweep start <- sweep end, at constant velocity) into the sensor frame at
+/// the sweep end.
+void deskewToSweepEnd(const Cloud& in, const Pose& motion, double scan_period, Cloud& out);
+
+/// Index of the first point of every ring in a ring-ordered cloud; entry r+1 ends ring r. Sized to the
+/// largest ring present plus two.
+std::vector<int> ringBegins(const Cloud& ring_ordered);
+
+}  // namespace aloam

@@ -1,0 +1,62 @@
+// Registration, odometry and mapping composed for in-process use (offline runner, tests, benchmarks).
+#pragma once
+
+#include <memory>
+
+#include "aloam_nodelet/core/laser_mapping.h"
+#include "aloam_nodelet/core/laser_odometry.h"
+#include "aloam_nodelet/core/scan_registration.h"
+
+namespace aloam
+{
+struct PipelineConfig
+{
+  ScanRegistrationConfig registration;
+  LaserOdometryConfig odometry;
+  LaserMappingConfig mapping;
+};
+
+enum class PipelineStatus
+{
+  kOk,
+  kRejectedInput,  ///< too few usable points: nothing changed, no pose for this sweep
+};
+
+struct PipelineTimings
+{
+  double registration_ms = 0.0;
+  double odometry_ms = 0.0;
+  double mapping_ms = 0.0;
+};
+
+struct PipelineOutput
+{
+  PipelineStatus status = PipelineStatus::kRejectedInput;
+  std::shared_ptr<const FeatureSet> features;
+  OdometryFrame odometry;
+  MappingResult mapping;
+  PipelineTimings timings;
+};
+
+/// The three LOAM stages run one after another on each sweep. Holds no global state: any number of
+/// pipelines may live in one process.
+class Pipeline
+{
+public:
+  explicit Pipeline(const PipelineConfig& config = {});
+
+  /// Runs one sweep through all stages. `has_ring` / `has_time`: whether those point fields are filled.
+  PipelineOutput process(const Cloud& cloud, double stamp, bool has_ring, bool has_time);
+
+  void reset();
+  const ScanRegistration& registration() const { return registration_; }
+  const LaserOdometry& odometry() const { return odometry_; }
+  const LaserMapping& mapping() const { return mapping_; }
+
+private:
+  ScanRegistration registration_;
+  LaserOdometry odometry_;
+  LaserMapping mapping_;
+};
+
+}  // namespace aloam

@@ -1,0 +1,38 @@
+// The pose problem both matching stages solve: a quaternion and a translation under point residuals.
+#pragma once
+
+#include <ceres/ceres.h>
+
+#include "aloam_nodelet/core/pose.h"
+
+namespace aloam
+{
+/// A Ceres problem over one pose (q in Eigen's x, y, z, w order on the unit-quaternion manifold, and t),
+/// with one shared robust loss for all residuals.
+class PoseProblem
+{
+public:
+  PoseProblem(const Pose& initial, double huber_delta);
+
+  void addResidual(ceres::CostFunction* cost) { problem_.AddResidualBlock(cost, loss_, q_, t_); }
+  int residualCount() const { return problem_.NumResidualBlocks(); }
+
+  /// Runs at most `max_iterations` Levenberg-Marquardt iterations.
+  void solve(int max_iterations);
+  Pose pose() const;
+
+  /// How well the residuals pin the pose down: the smallest eigenvalue of J^T J at the current pose, with
+  /// rotations expressed as the motion of a point `lever_arm` metres away (so that rotation and
+  /// translation compare). The pose is then known to about (residual noise) / sqrt(value) along its
+  /// weakest direction. Near 0 when some direction is unconstrained (one scan ring, a corridor, an open
+  /// field); on a synthetic street about 100 for a VLP-16 sweep and 500 for an HDL-64 sweep.
+  double constraintStrength(double lever_arm);
+
+private:
+  double q_[4];
+  double t_[3];
+  ceres::Problem problem_;
+  ceres::LossFunction* loss_;  // owned by problem_
+};
+
+}  // namespace aloam

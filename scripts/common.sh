@@ -1,0 +1,60 @@
+# Shared by the scripts in this folder: paths, dependency installation and the catkin build.
+# Source it; do not run it.
+
+ALOAM_ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+# The catkin workspace lives beside the sources (ignored by git); override with ALOAM_WS.
+ALOAM_WS="${ALOAM_WS:-$ALOAM_ROOT/.catkin_ws}"
+ALOAM_DATA="${ALOAM_DATA:-$ALOAM_ROOT/../shared/data}"
+# Debian's ROS tools need Debian's python3 (the image may put another one first on PATH).
+export PATH="/usr/bin:/bin:/usr/sbin:/sbin:$PATH"
+export ROS_HOME="${ROS_HOME:-$ALOAM_WS/ros_home}"
+export ROS_LOG_DIR="${ROS_LOG_DIR:-$ROS_HOME/log}"
+
+# Debian 12 packages the build, the tests and the tools need.
+ALOAM_DEBIAN_PACKAGES=(
+  build-essential cmake liblz4-dev catkin python3-catkin-pkg python3-rospkg
+  ros-base-dev libroscpp-dev librosbag-dev libnodeletlib-dev libnodeletlib-tools libnodelet-dev
+  pluginlib-dev libtf2-ros-dev libtf2-eigen-dev libpcl-ros-dev libpcl-dev libeigen3-dev libceres-dev
+  libsensor-msgs-dev libnav-msgs-dev libgeometry-msgs-dev libstd-srvs-dev
+  libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure libdiagnostic-updater-dev
+  python3-rostest librostest-dev python3-rosbag python3-nodelet python3-roslaunch libgtest-dev
+)
+
+aloam_log() { printf '\033[1m[aloam]\033[0m %s\n' "$*" >&2; }
+
+# Installs whatever of ALOAM_DEBIAN_PACKAGES is missing (needs root or sudo).
+aloam_install_deps() {
+  local missing=()
+  local pkg
+  for pkg in "${ALOAM_DEBIAN_PACKAGES[@]}"; do
+    dpkg-query -W -f='${Status}' "$pkg" 2>/dev/null | grep -q "install ok installed" || missing+=("$pkg")
+  done
+  if [ ${#missing[@]} -eq 0 ]; then
+    aloam_log "Debian packages: all present"
+    return 0
+  fi
+  local sudo=""
+  if [ "$(id -u)" -ne 0 ]; then
+    command -v sudo >/dev/null || { aloam_log "need root (or sudo) to install: ${missing[*]}"; return 1; }
+    sudo="sudo"
+  fi
+  aloam_log "installing ${#missing[@]} Debian packages: ${missing[*]}"
+  $sudo apt-get update -q
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -q --no-install-recommends "${missing[@]}"
+}
+
+# Creates the workspace (src/aloam_nodelet -> this repository) and builds it in Release.
+aloam_build() {
+  mkdir -p "$ALOAM_WS/src" "$ROS_LOG_DIR"
+  ln -sfn "$ALOAM_ROOT" "$ALOAM_WS/src/aloam_nodelet"
+  aloam_log "building in $ALOAM_WS"
+  (cd "$ALOAM_WS" && catkin_make -DCMAKE_BUILD_TYPE=Release -j"$(nproc)" "$@" >&2)
+}
+
+# Environment of the built workspace (setup.bash reads unset variables, so relax -u around it).
+aloam_source_ws() {
+  set +u
+  # shellcheck disable=SC1091
+  source "$ALOAM_WS/devel/setup.bash"
+  set -u
+}

@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# Installs the Debian packages, builds, and runs every test: gtest suites, rostests and the end-to-end
+# tool checks. Exits non-zero if anything fails.
+set -euo pipefail
+source "$(dirname "$0")/common.sh"
+
+aloam_install_deps
+aloam_build
+aloam_source_ws
+
+results="$ALOAM_WS/build/test_results"
+rm -rf "$results"
+aloam_log "running the catkin test suites"
+# run_tests exits 0 even when tests fail: catkin_test_results below gives the real status.
+(cd "$ALOAM_WS" && catkin_make run_tests -j1 >&2) || true
+summary=$(catkin_test_results --verbose "$results" | tee /dev/stderr | grep '^Summary:' || true)
+catkin_status=0
+catkin_test_results "$results" >/dev/null || catkin_status=1
+# "Summary: N tests, E errors, F failures, S skipped"
+read -r total errors failures skipped < <(echo "$summary" | awk '{gsub(",", ""); print $2, $4, $6, $8}')
+total=${total:-0} errors=${errors:-0} failures=${failures:-0} skipped=${skipped:-0}
+[ "$total" -gt 0 ] || { aloam_log "no test results found"; catkin_status=1; }
+
+aloam_log "running the end-to-end tool checks"
+tools_passed=0 tools_failed=0 tools_skipped=0
+bin="$ALOAM_WS/devel/lib/aloam_nodelet"
+checks_out="$ALOAM_WS/test_output"
+run_check() {  # run_check SCRIPT ARGS...: exit 0 passed, 77 skipped, anything else failed
+  local status=0
+  bash "$ALOAM_ROOT/test/tools/$1" "${@:2}" || status=$?
+  case $status in
+    0) tools_passed=$((tools_passed + 1)) ;;
+    77) tools_skipped=$((tools_skipped + 1)) ;;
+    *) tools_failed=$((tools_failed + 1)); aloam_log "FAILED: $1" ;;
+  esac
+}
+run_check check_offline_bag.sh "$bin" "$checks_out/offline_bag"
+run_check check_offline_kitti.sh "$bin" "$ALOAM_DATA/kitti00_101" "$checks_out/offline_kitti"
+
+passed=$((total - errors - failures - skipped + tools_passed))
+failed=$((errors + failures + tools_failed))
+echo "$passed passed, $failed failed, $((skipped + tools_skipped)) skipped"
+[ $catkin_status -eq 0 ] && [ $tools_failed -eq 0 ]

@@ -1,0 +1,53 @@
+#include "aloam_nodelet/core/pipeline.h"
+
+#include <chrono>
+
+namespace aloam
+{
+namespace
+{
+using Clock = std::chrono::steady_clock;
+
+double msSince(Clock::time_point start)
+{
+  return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
+}
+}  // namespace
+
+Pipeline::Pipeline(const PipelineConfig& config)
+  : registration_(config.registration), odometry_(config.odometry), mapping_(config.mapping)
+{
+}
+
+void Pipeline::reset()
+{
+  odometry_.reset();
+  mapping_.reset();
+}
+
+PipelineOutput Pipeline::process(const Cloud& cloud, double stamp, bool has_ring, bool has_time)
+{
+  PipelineOutput out;
+  auto start = Clock::now();
+  auto features = std::make_shared<FeatureSet>();
+  const bool usable = registration_.process(cloud, stamp, has_ring, has_time, *features);
+  out.timings.registration_ms = msSince(start);
+  out.features = features;
+  if (!usable)
+  {
+    out.status = PipelineStatus::kRejectedInput;
+    return out;
+  }
+
+  start = Clock::now();
+  out.odometry = odometry_.process(features);
+  out.timings.odometry_ms = msSince(start);
+
+  start = Clock::now();
+  out.mapping = mapping_.process(out.odometry);
+  out.timings.mapping_ms = msSince(start);
+  out.status = PipelineStatus::kOk;
+  return out;
+}
+
+}  // namespace aloam

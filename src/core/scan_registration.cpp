@@ -1,0 +1,442 @@
+#include "aloam_nodelet/core/scan_registration.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+
+#include "aloam_nodelet/core/voxel_filter.h"
+
+namespace aloam
+{
+namespace
+{
+constexpr double kTwoPi = 2.0 * M_PI;
+// Rings above this count are treated as corrupt ring fields rather than real beams.
+constexpr int kMaxRings = 256;
+// The first return of a ring may lead the sweep start by up to a quarter turn (beam azimuth offsets)
+// or lag it by up to three quarters (a beam that saw only sky at first).
+constexpr double kRingStartLead = 0.5 * M_PI;
+// Azimuth overlap tolerated past the end of a sweep before a ring is taken to start over.
+constexpr double kFullTurnMargin = 5.0 * M_PI / 180.0;
+
+enum Pick : std::uint8_t
+{
+  kFree = 0,
+  kTaken = 1,      // chosen as a feature or suppressed next to one
+  kUnreliable = 2  // occluded or grazing: never a sharp or flat feature (still less flat, as in LOAM)
+};
+
+enum Label : std::int8_t
+{
+  kFlat = -1,
+  kPlain = 0,
+  kLessSharp = 1,
+  kSharp = 2
+};
+
+// Wraps an angle into [lo, lo + 2 pi).
+double wrapFrom(double angle, double lo)
+{
+  double a = std::fmod(angle - lo, kTwoPi);
+  if (a < 0.0)
+  {
+    a += kTwoPi;
+  }
+  return a + lo;
+}
+
+float squaredGap(const Point& a, const Point& b)
+{
+  const float dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
+  return dx * dx + dy * dy + dz * dz;
+}
+}  // namespace
+
+ScanRegistration::ScanRegistration(ScanRegistrationConfig config) : config_(std::move(config))
+{
+}
+
+void ScanRegistration::assignRingsAndTimes(const Cloud& cloud, bool has_ring, bool has_time,
+                                           RegistrationStats& stats)
+{
+  const bool ring_from_field = has_ring && config_.use_ring_field;
+  const bool time_from_field = has_time && config_.use_time_field;
+  const int model_rings = config_.sensor.numRings();
+
+  auto& rings = scratch_.rings;
+  auto& azimuths = scratch_.azimuths;
+  for (auto& r : rings)
+  {
+    r.clear();
+  }
+  for (auto& a : azimuths)
+  {
+    a.clear();
+  }
+  if (!ring_from_field && static_cast<int>(rings.size()) < model_rings)
+  {
+    rings.resize(static_cast<std::size_t>(model_rings));
+  }
+
+  const double min_sq = config_.minimum_range * config_.minimum_range;
+  const double max_sq = config_.maximum_range * config_.maximum_range;
+  bool have_start = false;
+  double start_azimuth = 0.0;
+
+  for (const Point& in : cloud.points)
+  {
+    if (!isFinite(in))
+    {
+      ++stats.invalid;
+      continue;
+    }
+    const double range_sq = double(in.x) * in.x + double(in.y) * in.y + double(in.z) * in.z;
+    if (range_sq < min_sq || range_sq > max_sq)
+    {
+      ++stats.out_of_range;
+      continue;
+    }
+
+    int ring = -1;
+    if (ring_from_field)
+    {
+      ring = in.ring < kMaxRings ? int(in.ring) : -1;
+    }
+    else
+    {
+      const double elevation = std::atan2(double(in.z), std::sqrt(double(in.x) * in.x + double(in.y) * in.y));
+      ring = config_.sensor.ringForElevation(elevation);
+    }
+    if (ring < 0)
+    {
+      ++stats.unassigned_ring;
+      continue;
+    }
+    if (ring >= static_cast<int>(rings.size()))
+    {
+      rings.resize(static_cast<std::size_t>(ring) + 1);
+    }
+    Point p = in;
+    p.ring = static_cast<std::uint16_t>(ring);
+    if (time_from_field)
+    {
+      p.time = std::isfinite(in.time) && in.time > 0.0f ? in.time : 0.0f;
+    }
+    else
+    {
+      const double azimuth = std::atan2(double(in.y), double(in.x));
+      if (!have_start)
+      {
+        have_start = true;
+        start_azimuth = azimuth;
+      }
+      if (azimuths.size() < rings.size())
+      {
+        azimuths.resize(rings.size());
+      }
+      azimuths[static_cast<std::size_t>(ring)].push_back(static_cast<float>(azimuth));
+    }
+    rings[static_cast<std::size_t>(ring)].push_back(p);
+  }
+  if (!time_from_field)
+  {
+    timesFromAzimuth(start_azimuth);
+  }
+}
+
+void ScanRegistration::timesFromAzimuth(double start_azimuth)
+{
+  // Spin direction from the data: the sum of azimuth steps along the rings (points are in firing order
+  // within a ring). Velodyne drivers spin clockwise seen from above; KITTI stores its sweeps the other way.
+  const auto& azimuths = scratch_.azimuths;
+  double turn = 0.0;
+  for (const auto& a : azimuths)
+  {
+    for (std::size_t k = 1; k < a.size(); ++k)
+    {
+      turn += wrapFrom(double(a[k]) - a[k - 1], -M_PI);
+    }
+  }
+  const double direction = turn >= 0.0 ? 1.0 : -1.0;
+
+  for (std::size_t r = 0; r < azimuths.size() && r < scratch_.rings.size(); ++r)
+  {
+    const auto& a = azimuths[r];
+    auto& points = scratch_.rings[r];
+    double progress = 0.0;  // radians turned since the sweep start
+    for (std::size_t k = 0; k < a.size(); ++k)
+    {
+      if (k == 0)
+      {
+        progress = wrapFrom(direction * (double(a[0]) - start_azimuth), -kRingStartLead);
+      }
+      else
+      {
+        progress += direction * wrapFrom(double(a[k]) - a[k - 1], -M_PI);
+        // Past a full turn: the ring's returns came in two blocks (two lasers that share a nominal
+        // ring, as in KITTI's calibrated HDL-64); the second block starts over.
+        if (progress > kTwoPi + kFullTurnMargin)
+        {
+          progress -= kTwoPi;
+        }
+      }
+      const double fraction = std::clamp(progress / kTwoPi, 0.0, 1.0);
+      points[k].time = static_cast<float>(fraction * config_.scan_period);
+    }
+  }
+}
+
+void ScanRegistration::markUnreliable(const Cloud& full, int begin, int end, RegistrationStats& stats)
+{
+  const int w = config_.curvature_half_window;
+  auto& picked = scratch_.picked;
+  const auto& range = scratch_.range;
+  auto mark = [&](int from, int to, std::size_t& counter) {
+    for (int k = std::max(from, begin); k <= std::min(to, end - 1); ++k)
+    {
+      if (picked[k] != kUnreliable)
+      {
+        picked[k] = kUnreliable;
+        ++counter;
+      }
+    }
+  };
+
+  for (int i = begin + w; i < end - w - 1; ++i)
+  {
+    const Point& a = full.points[i];
+    const Point& b = full.points[i + 1];
+    const float gap_next = squaredGap(a, b);
+    if (config_.reject_occluded && gap_next > config_.occlusion_gap_sq)
+    {
+      const float ra = range[i], rb = range[i + 1];
+      // Chord between the two unit bearings: about the angle between the beams.
+      const float dx = a.x / ra - b.x / rb, dy = a.y / ra - b.y / rb, dz = a.z / ra - b.z / rb;
+      const float bearing = std::sqrt(dx * dx + dy * dy + dz * dz);
+      if (bearing < config_.occlusion_max_bearing)
+      {
+        if (ra > rb)
+        {
+          mark(i - w, i, stats.occluded);  // a lies behind b's edge
+        }
+        else
+        {
+          mark(i + 1, i + 1 + w, stats.occluded);  // b lies behind a's edge
+        }
+      }
+    }
+    if (config_.reject_grazing)
+    {
+      const float gap_prev = squaredGap(a, full.points[i - 1]);
+      const float limit = static_cast<float>(config_.grazing_gap_ratio_sq) * range[i] * range[i];
+      if (gap_next > limit && gap_prev > limit)
+      {
+        mark(i, i, stats.grazing);
+      }
+    }
+  }
+}
+
+void ScanRegistration::suppressNeighbours(const Cloud& full, int index, int ring_begin, int ring_end)
+{
+  auto& picked = scratch_.picked;
+  const int w = config_.curvature_half_window;
+  for (int l = 1; l <= w && index + l < ring_end; ++l)
+  {
+    if (squaredGap(full.points[index + l], full.points[index + l - 1]) > config_.suppression_gap_sq)
+    {
+      break;
+    }
+    if (picked[index + l] == kFree)
+    {
+      picked[index + l] = kTaken;
+    }
+  }
+  for (int l = 1; l <= w && index - l >= ring_begin; ++l)
+  {
+    if (squaredGap(full.points[index - l], full.points[index - l + 1]) > config_.suppression_gap_sq)
+    {
+      break;
+    }
+    if (picked[index - l] == kFree)
+    {
+      picked[index - l] = kTaken;
+    }
+  }
+}
+
+void ScanRegistration::pickSector(const Cloud& full, int begin, int end, FeatureSet& out)
+{
+  // [begin, end) lies inside one ring whose bounds are [ring_begin, ring_end).
+  const int w = config_.curvature_half_window;
+  const int ring_begin = begin - w;
+  const int ring_end = end + w;
+  auto& order = scratch_.order;
+  const auto& curvature = scratch_.curvature;
+  auto& picked = scratch_.picked;
+  auto& label = scratch_.label;
+
+  order.resize(static_cast<std::size_t>(end - begin));
+  std::iota(order.begin(), order.end(), begin);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return curvature[a] < curvature[b]; });
+
+  int taken = 0;
+  for (auto it = order.rbegin(); it != order.rend(); ++it)
+  {
+    const int i = *it;
+    if (picked[i] != kFree || !(curvature[i] > config_.curvature_threshold))
+    {
+      continue;
+    }
+    ++taken;
+    if (taken <= config_.max_sharp_per_sector)
+    {
+      label[i] = kSharp;
+      out.sharp.push_back(full.points[i]);
+      out.less_sharp.push_back(full.points[i]);
+    }
+    else if (taken <= config_.max_less_sharp_per_sector)
+    {
+      label[i] = kLessSharp;
+      out.less_sharp.push_back(full.points[i]);
+    }
+    else
+    {
+      break;
+    }
+    picked[i] = kTaken;
+    suppressNeighbours(full, i, ring_begin, ring_end);
+  }
+
+  taken = 0;
+  for (const int i : order)
+  {
+    if (taken >= config_.max_flat_per_sector)
+    {
+      break;
+    }
+    if (picked[i] != kFree || !(curvature[i] < config_.curvature_threshold))
+    {
+      continue;
+    }
+    label[i] = kFlat;
+    out.flat.push_back(full.points[i]);
+    ++taken;
+    picked[i] = kTaken;
+    suppressNeighbours(full, i, ring_begin, ring_end);
+  }
+
+  for (int i = begin; i < end; ++i)
+  {
+    if (label[i] <= kPlain)
+    {
+      scratch_.less_flat_ring.push_back(full.points[i]);
+    }
+  }
+}
+
+bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, bool has_time, FeatureSet& out)
+{
+  out.stamp = stamp;
+  out.scan_period = config_.scan_period;
+  out.has_time = true;
+  out.stats = RegistrationStats{};
+  for (Cloud* c : { &out.sharp, &out.less_sharp, &out.flat, &out.less_flat, &out.full })
+  {
+    c->clear();
+  }
+  RegistrationStats& stats = out.stats;
+  stats.points_in = cloud.size();
+
+  assignRingsAndTimes(cloud, has_ring, has_time, stats);
+
+  // Concatenate the rings; remember where each begins.
+  std::size_t total = 0;
+  for (const auto& r : scratch_.rings)
+  {
+    total += r.size();
+  }
+  out.full.points.reserve(total);
+  std::vector<int> ring_begin;
+  ring_begin.reserve(scratch_.rings.size() + 1);
+  for (const auto& r : scratch_.rings)
+  {
+    ring_begin.push_back(static_cast<int>(out.full.size()));
+    out.full.points.insert(out.full.points.end(), r.begin(), r.end());
+    if (!r.empty())
+    {
+      ++stats.rings;
+    }
+  }
+  ring_begin.push_back(static_cast<int>(out.full.size()));
+  setUnorganized(out.full);
+  stats.points_used = out.full.size();
+
+  const int w = config_.curvature_half_window;
+  const int min_ring_points = 2 * w + 1 + config_.sectors;
+  if (static_cast<int>(out.full.size()) < min_ring_points)
+  {
+    out.full.clear();
+    return false;
+  }
+
+  const int n = static_cast<int>(out.full.size());
+  scratch_.curvature.assign(static_cast<std::size_t>(n), 0.0f);
+  scratch_.range.resize(static_cast<std::size_t>(n));
+  scratch_.picked.assign(static_cast<std::size_t>(n), kFree);
+  scratch_.label.assign(static_cast<std::size_t>(n), kPlain);
+  for (int i = 0; i < n; ++i)
+  {
+    const Point& p = out.full.points[i];
+    scratch_.range[i] = std::sqrt(p.x * p.x + p.y * p.y + p.z * p.z);
+  }
+
+  for (std::size_t r = 0; r + 1 < ring_begin.size(); ++r)
+  {
+    const int begin = ring_begin[r];
+    const int end = ring_begin[r + 1];
+    if (end - begin < min_ring_points)
+    {
+      continue;
+    }
+    // LOAM curvature: squared norm of (sum of the 2w neighbours - 2w * point).
+    for (int i = begin + w; i < end - w; ++i)
+    {
+      const Point& p = out.full.points[i];
+      float dx = -2.0f * w * p.x, dy = -2.0f * w * p.y, dz = -2.0f * w * p.z;
+      for (int k = i - w; k <= i + w; ++k)
+      {
+        if (k != i)
+        {
+          dx += out.full.points[k].x;
+          dy += out.full.points[k].y;
+          dz += out.full.points[k].z;
+        }
+      }
+      scratch_.curvature[i] = dx * dx + dy * dy + dz * dz;
+    }
+    markUnreliable(out.full, begin, end, stats);
+
+    scratch_.less_flat_ring.clear();
+    const int first = begin + w;
+    const int span = (end - w) - first;
+    for (int s = 0; s < config_.sectors; ++s)
+    {
+      const int sp = first + span * s / config_.sectors;
+      const int ep = first + span * (s + 1) / config_.sectors;
+      if (ep > sp)
+      {
+        pickSector(out.full, sp, ep, out);
+      }
+    }
+    voxelDownsample(scratch_.less_flat_ring, config_.less_flat_leaf_size, out.less_flat);
+  }
+
+  for (Cloud* c : { &out.sharp, &out.less_sharp, &out.flat, &out.less_flat })
+  {
+    setUnorganized(*c);
+  }
+  return true;
+}
+
+}  // namespace aloam

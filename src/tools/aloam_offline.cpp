@@ -1,0 +1,385 @@
+// aloam_offline: runs the LOAM pipeline over a KITTI sequence folder or a rosbag, frame by frame, and
+// writes the mapped trajectory, the map and per-stage timings.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include <pcl/io/pcd_io.h>
+#include <pcl/io/impl/pcd_io.hpp>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+
+#include "aloam_nodelet/core/pipeline.h"
+#include "aloam_nodelet/eval/trajectory_io.h"
+#include "aloam_nodelet/io/kitti_dataset.h"
+#include "aloam_nodelet/ros/pointcloud2_reader.h"
+
+namespace fs = std::filesystem;
+
+namespace
+{
+constexpr const char* kUsage =
+    "usage: aloam_offline (--kitti DIR | --bag FILE --topic TOPIC) --sensor PRESET --trajectory OUT.txt\n"
+    "                     [--tum OUT.tum] [--map OUT.pcd] [--deskew] [--minimum-range M] [--max-frames N]\n"
+    "\n"
+    "  --kitti DIR        KITTI odometry sequence folder: DIR/velodyne/*.bin (+ DIR/times.txt)\n"
+    "  --bag FILE         rosbag with sensor_msgs/PointCloud2 on --topic\n"
+    "  --sensor PRESET    VLP16 | HDL32 | HDL64 | VLP32C | OS1_64 | OS0_64\n"
+    "  --trajectory OUT   mapped lidar pose of every frame relative to the first, KITTI 3x4 rows\n"
+    "  --tum OUT          the same poses in TUM format (stamp tx ty tz qx qy qz qw)\n"
+    "  --map OUT.pcd      the feature map at the end (binary PCD)\n"
+    "  --deskew           correct motion within each sweep (KITTI scans are already corrected: off)\n"
+    "  --minimum-range M  drop returns closer than M metres (default: 5 for --kitti, 0.3 otherwise)\n"
+    "  --kitti-vertical-correction DEG\n"
+    "                     raise KITTI elevations by DEG (default 0.205, KITTI's known intrinsic error; 0: off)\n"
+    "  --max-frames N     stop after N frames\n";
+
+struct Options
+{
+  std::string kitti_dir, bag_file, topic, sensor, trajectory, tum, map;
+  bool deskew = false;
+  std::optional<double> minimum_range;
+  double kitti_vertical_correction = aloam::io::kKittiVerticalCorrectionDeg;
+  std::size_t max_frames = 0;
+};
+
+/// One input sweep.
+struct Frame
+{
+  aloam::Cloud cloud;
+  double stamp = 0.0;
+  bool has_ring = false;
+  bool has_time = false;
+};
+
+/// Where sweeps come from.
+class FrameSource
+{
+public:
+  virtual ~FrameSource() = default;
+  virtual std::size_t size() const = 0;
+  /// Reads frame i; false (with a message on stderr) if it cannot be used.
+  virtual bool read(std::size_t i, Frame& frame) = 0;
+};
+
+class KittiSource : public FrameSource
+{
+public:
+  KittiSource(const fs::path& dir, double vertical_correction_deg)
+    : files_(aloam::io::listKittiScans(dir.string())), vertical_correction_deg_(vertical_correction_deg)
+  {
+    const fs::path times = dir / "times.txt";
+    if (fs::exists(times))
+    {
+      stamps_ = aloam::eval::readTimes(times.string());
+      if (stamps_.size() < files_.size())
+      {
+        std::cerr << "warning: times.txt has " << stamps_.size() << " lines for " << files_.size()
+                  << " scans; the rest are stamped at 10 Hz\n";
+      }
+    }
+  }
+
+  std::size_t size() const override { return files_.size(); }
+
+  bool read(std::size_t i, Frame& frame) override
+  {
+    try
+    {
+      aloam::io::readKittiScan(files_[i], frame.cloud);
+    }
+    catch (const std::exception& e)
+    {
+      std::cerr << "\n" << e.what() << "\n";
+      return false;
+    }
+    if (vertical_correction_deg_ != 0.0)
+    {
+      aloam::io::correctVerticalAngle(frame.cloud, vertical_correction_deg_);
+    }
+    frame.stamp = i < stamps_.size() ? stamps_[i] : kKittiPeriod * static_cast<double>(i);
+    frame.has_ring = false;
+    frame.has_time = false;
+    return true;
+  }
+
+private:
+  static constexpr double kKittiPeriod = 0.1;
+  std::vector<std::string> files_;
+  std::vector<double> stamps_;
+  double vertical_correction_deg_;
+};
+
+class BagSource : public FrameSource
+{
+public:
+  BagSource(const std::string& file, const std::string& topic, double scan_period)
+  {
+    options_.scan_period = scan_period;
+    bag_.open(file, rosbag::bagmode::Read);
+    rosbag::View view(bag_, rosbag::TopicQuery(topic));
+    for (const rosbag::MessageInstance& m : view)
+    {
+      auto msg = m.instantiate<sensor_msgs::PointCloud2>();
+      if (msg)
+      {
+        messages_.push_back(msg);
+      }
+    }
+    if (messages_.empty())
+    {
+      throw std::runtime_error("no sensor_msgs/PointCloud2 on topic " + topic + " in " + file);
+    }
+  }
+
+  std::size_t size() const override { return messages_.size(); }
+
+  bool read(std::size_t i, Frame& frame) override
+  {
+    const auto report = aloam::ros_io::readPointCloud2(*messages_[i], options_, frame.cloud);
+    if (!report.ok)
+    {
+      std::cerr << "\nmessage " << i << " skipped: " << report.error << "\n";
+      return false;
+    }
+    frame.stamp = messages_[i]->header.stamp.toSec();
+    frame.has_ring = report.has_ring;
+    frame.has_time = report.has_time;
+    return true;
+  }
+
+private:
+  rosbag::Bag bag_;
+  std::vector<sensor_msgs::PointCloud2::ConstPtr> messages_;
+  aloam::ros_io::ReaderOptions options_;
+};
+
+/// Mean, median and 90th percentile of a series of milliseconds.
+std::string summary(std::vector<double> ms)
+{
+  if (ms.empty())
+  {
+    return "n/a";
+  }
+  double sum = 0.0;
+  for (const double v : ms)
+  {
+    sum += v;
+  }
+  std::sort(ms.begin(), ms.end());
+  char text[128];
+  std::snprintf(text, sizeof(text), "mean %6.1f  median %6.1f  p90 %6.1f ms", sum / ms.size(), ms[ms.size() / 2],
+                ms[std::min(ms.size() - 1, static_cast<std::size_t>(0.9 * ms.size()))]);
+  return text;
+}
+
+void showProgress(std::size_t done, std::size_t total, double seconds, bool tty)
+{
+  const std::size_t step = std::max<std::size_t>(1, total / 10);
+  if (!tty && done != total && done % step != 0)
+  {
+    return;
+  }
+  constexpr int kWidth = 30;
+  const int filled = static_cast<int>(kWidth * done / std::max<std::size_t>(total, 1));
+  std::fprintf(stderr, "%s[%s%s] %zu/%zu frames  %.1f frames/s%s", tty ? "\r" : "", std::string(filled, '#').c_str(),
+               std::string(kWidth - filled, ' ').c_str(), done, total, seconds > 0 ? done / seconds : 0.0,
+               tty ? "" : "\n");
+  if (tty && done == total)
+  {
+    std::fputc('\n', stderr);
+  }
+}
+
+bool parse(int argc, char** argv, Options& o)
+{
+  for (int i = 1; i < argc; ++i)
+  {
+    const std::string arg = argv[i];
+    auto value = [&](std::string& out) {
+      if (i + 1 >= argc)
+      {
+        throw std::invalid_argument(arg + " needs a value");
+      }
+      out = argv[++i];
+    };
+    std::string number;
+    if (arg == "--kitti") value(o.kitti_dir);
+    else if (arg == "--bag") value(o.bag_file);
+    else if (arg == "--topic") value(o.topic);
+    else if (arg == "--sensor") value(o.sensor);
+    else if (arg == "--trajectory") value(o.trajectory);
+    else if (arg == "--tum") value(o.tum);
+    else if (arg == "--map") value(o.map);
+    else if (arg == "--deskew") o.deskew = true;
+    else if (arg == "--minimum-range")
+    {
+      value(number);
+      o.minimum_range = std::stod(number);
+    }
+    else if (arg == "--kitti-vertical-correction")
+    {
+      value(number);
+      o.kitti_vertical_correction = std::stod(number);
+    }
+    else if (arg == "--max-frames")
+    {
+      value(number);
+      o.max_frames = static_cast<std::size_t>(std::stoul(number));
+    }
+    else if (arg == "--help" || arg == "-h")
+    {
+      std::cout << kUsage;
+      std::exit(0);
+    }
+    else
+    {
+      throw std::invalid_argument("unknown argument " + arg);
+    }
+  }
+  if (o.kitti_dir.empty() == o.bag_file.empty())
+  {
+    throw std::invalid_argument("give exactly one of --kitti and --bag");
+  }
+  if (!o.bag_file.empty() && o.topic.empty())
+  {
+    throw std::invalid_argument("--bag needs --topic");
+  }
+  if (o.sensor.empty() || o.trajectory.empty())
+  {
+    throw std::invalid_argument("--sensor and --trajectory are required");
+  }
+  return true;
+}
+}  // namespace
+
+int main(int argc, char** argv)
+{
+  Options opt;
+  try
+  {
+    parse(argc, argv, opt);
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "aloam_offline: " << e.what() << "\n\n" << kUsage;
+    return 2;
+  }
+  const auto sensor = aloam::SensorModel::fromPreset(opt.sensor);
+  if (!sensor)
+  {
+    std::cerr << "aloam_offline: unknown sensor " << opt.sensor << "\n\n" << kUsage;
+    return 2;
+  }
+
+  aloam::PipelineConfig config = opt.kitti_dir.empty() ? aloam::PipelineConfig() : aloam::io::kittiPipelineConfig();
+  config.registration.sensor = *sensor;
+  config.registration.scan_period = sensor->scanPeriod();
+  if (opt.minimum_range)
+  {
+    config.registration.minimum_range = *opt.minimum_range;
+  }
+  config.odometry.deskew = opt.deskew;
+
+  std::unique_ptr<FrameSource> source;
+  try
+  {
+    if (!opt.kitti_dir.empty())
+    {
+      source = std::make_unique<KittiSource>(opt.kitti_dir, opt.kitti_vertical_correction);
+    }
+    else
+    {
+      source = std::make_unique<BagSource>(opt.bag_file, opt.topic, sensor->scanPeriod());
+    }
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "aloam_offline: " << e.what() << "\n";
+    return 1;
+  }
+
+  const std::size_t frames = opt.max_frames > 0 ? std::min(opt.max_frames, source->size()) : source->size();
+  std::cerr << "aloam_offline: " << frames << " frames, sensor " << opt.sensor
+            << (opt.deskew ? ", deskew on" : ", deskew off") << "\n";
+
+  aloam::Pipeline pipeline(config);
+  aloam::eval::Trajectory trajectory;
+  std::vector<double> stamps;
+  std::vector<double> registration_ms, odometry_ms, mapping_ms, total_ms;
+  std::size_t rejected = 0, degraded_odometry = 0, degraded_mapping = 0;
+  Frame frame;
+  const bool tty = isatty(fileno(stderr));
+  const auto start = std::chrono::steady_clock::now();
+  for (std::size_t i = 0; i < frames; ++i)
+  {
+    aloam::Pose pose = trajectory.empty() ? aloam::Pose() : aloam::Pose(trajectory.back());
+    if (source->read(i, frame))
+    {
+      const aloam::PipelineOutput out = pipeline.process(frame.cloud, frame.stamp, frame.has_ring, frame.has_time);
+      registration_ms.push_back(out.timings.registration_ms);
+      if (out.status == aloam::PipelineStatus::kOk)
+      {
+        pose = out.mapping.pose;
+        odometry_ms.push_back(out.timings.odometry_ms);
+        mapping_ms.push_back(out.timings.mapping_ms);
+        total_ms.push_back(out.timings.registration_ms + out.timings.odometry_ms + out.timings.mapping_ms);
+        degraded_odometry += out.odometry.status == aloam::OdometryStatus::kDegraded;
+        degraded_mapping += out.mapping.status == aloam::MappingStatus::kDegraded;
+      }
+      else
+      {
+        ++rejected;
+      }
+    }
+    else
+    {
+      ++rejected;
+    }
+    trajectory.push_back(pose.isometry());
+    stamps.push_back(frame.stamp);
+    showProgress(i + 1, frames, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), tty);
+  }
+
+  try
+  {
+    aloam::eval::writeKittiPoses(opt.trajectory, trajectory);
+    std::cout << "trajectory: " << opt.trajectory << " (" << trajectory.size() << " poses)\n";
+    if (!opt.tum.empty())
+    {
+      aloam::eval::writeTumTrajectory(opt.tum, trajectory, stamps);
+      std::cout << "tum trajectory: " << opt.tum << "\n";
+    }
+    if (!opt.map.empty())
+    {
+      aloam::Cloud map;
+      pipeline.mapping().map().collectAll(map);
+      if (map.empty() || pcl::io::savePCDFileBinary(opt.map, map) != 0)
+      {
+        throw std::runtime_error("cannot write map " + opt.map);
+      }
+      std::cout << "map: " << opt.map << " (" << map.size() << " points)\n";
+    }
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "aloam_offline: " << e.what() << "\n";
+    return 1;
+  }
+
+  std::cout << "frames: " << frames << "  rejected: " << rejected << "  odometry degraded: " << degraded_odometry
+            << "  mapping degraded: " << degraded_mapping << "\n";
+  std::cout << "registration: " << summary(registration_ms) << "\n";
+  std::cout << "odometry:     " << summary(odometry_ms) << "\n";
+  std::cout << "mapping:      " << summary(mapping_ms) << "\n";
+  std::cout << "total:        " << summary(total_ms) << "\n";
+  return rejected == frames ? 1 : 0;
+}

@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# End-to-end check of the installed tools on real data: aloam_offline on KITTI 00 frames 0-100, then
+# aloam_eval from frame 6 with 10-70 m segments, against A-LOAM's figures on the same frames.
+# Usage: check_offline_kitti.sh BIN_DIR KITTI_DIR OUT_DIR
+# Exit 0: passed; 1: failed; 77: skipped (no data), with the reason printed.
+set -euo pipefail
+bin="$1" data="$2" out="$3"
+max_drift=1.449  # A-LOAM, translation drift %
+max_ate=0.167    # A-LOAM, ATE after alignment (m)
+
+if [ ! -d "$data/velodyne" ] || [ ! -f "$data/poses_kitti_gt.txt" ]; then
+  echo "SKIPPED offline KITTI check: no KITTI data at $data"
+  exit 77
+fi
+mkdir -p "$out"
+"$bin/aloam_offline" --kitti "$data" --sensor HDL64 --trajectory "$out/trajectory.txt" \
+  --tum "$out/trajectory.tum" --map "$out/map.pcd" | tee "$out/offline.txt"
+"$bin/aloam_eval" --gt "$data/poses_kitti_gt.txt" --calib "$data/calib.txt" \
+  --trajectory "$out/trajectory.txt" --start 6 --segments 10,20,30,40,50,60,70 | tee "$out/eval.txt"
+
+frames=$(grep -c . "$out/trajectory.txt")
+expected=$(find "$data/velodyne" -name '*.bin' | wc -l)
+drift=$(awk '/^translation_drift_percent:/ {print $2}' "$out/eval.txt")
+ate=$(awk '/^ate_rmse_m:/ {print $2}' "$out/eval.txt")
+status=0
+[ "$frames" -eq "$expected" ] || { echo "FAIL: $frames poses for $expected scans"; status=1; }
+[ -s "$out/map.pcd" ] || { echo "FAIL: no map written"; status=1; }
+awk -v v="$drift" -v m="$max_drift" 'BEGIN {exit !(v != "" && v <= m)}' ||
+  { echo "FAIL: drift $drift % > $max_drift %"; status=1; }
+awk -v v="$ate" -v m="$max_ate" 'BEGIN {exit !(v != "" && v <= m)}' ||
+  { echo "FAIL: ATE $ate m > $max_ate m"; status=1; }
+[ $status -eq 0 ] && echo "PASSED offline KITTI check: drift $drift % (<= $max_drift), ATE $ate m (<= $max_ate)"
+exit $status
