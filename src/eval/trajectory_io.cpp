@@ -83,6 +83,27 @@ std::ifstream openForReading(const std::string& path)
   return in;
 }
 
+// Calls `handle(line, line_number)` for every non-blank line of the file at `path`.
+template <typename Handler>
+void forEachLine(const std::string& path, Handler handle)
+{
+  std::ifstream in = openForReading(path);
+  std::string line;
+  std::size_t line_number = 0;
+  while (std::getline(in, line))
+  {
+    ++line_number;
+    if (!isBlank(line))
+    {
+      handle(line, line_number);
+    }
+  }
+  if (in.bad())
+  {
+    throw std::runtime_error("error while reading '" + path + "'");
+  }
+}
+
 // RAII wrapper around a C stdio file opened for writing.
 class OutputFile
 {
@@ -127,23 +148,10 @@ private:
 
 Trajectory readKittiPoses(const std::string& path)
 {
-  std::ifstream in = openForReading(path);
   Trajectory poses;
-  std::string line;
-  std::size_t line_number = 0;
-  while (std::getline(in, line))
-  {
-    ++line_number;
-    if (isBlank(line))
-    {
-      continue;
-    }
+  forEachLine(path, [&](const std::string& line, std::size_t line_number) {
     poses.push_back(parsePoseLine(line, path, line_number));
-  }
-  if (in.bad())
-  {
-    throw std::runtime_error("error while reading '" + path + "'");
-  }
+  });
   return poses;
 }
 
@@ -211,28 +219,15 @@ Eigen::Isometry3d readKittiCalibTr(const std::string& path)
 
 std::vector<double> readTimes(const std::string& path)
 {
-  std::ifstream in = openForReading(path);
   std::vector<double> times;
   std::vector<double> numbers;
-  std::string line;
-  std::size_t line_number = 0;
-  while (std::getline(in, line))
-  {
-    ++line_number;
-    if (isBlank(line))
-    {
-      continue;
-    }
+  forEachLine(path, [&](const std::string& line, std::size_t line_number) {
     if (!parseNumbers(line, numbers) || numbers.size() != 1)
     {
       throw std::runtime_error(location(path, line_number) + ": expected one timestamp");
     }
     times.push_back(numbers.front());
-  }
-  if (in.bad())
-  {
-    throw std::runtime_error("error while reading '" + path + "'");
-  }
+  });
   return times;
 }
 

@@ -65,27 +65,6 @@ bool hostIsBigEndian()
 #endif
 }
 
-std::size_t datatypeSize(std::uint8_t datatype)
-{
-  switch (datatype)
-  {
-    case PointField::INT8:
-    case PointField::UINT8:
-      return 1;
-    case PointField::INT16:
-    case PointField::UINT16:
-      return 2;
-    case PointField::INT32:
-    case PointField::UINT32:
-    case PointField::FLOAT32:
-      return 4;
-    case PointField::FLOAT64:
-      return 8;
-    default:
-      return 0;
-  }
-}
-
 bool isFloatType(std::uint8_t datatype)
 {
   return datatype == PointField::FLOAT32 || datatype == PointField::FLOAT64;
@@ -193,7 +172,7 @@ const PointField* findField(const sensor_msgs::PointCloud2& msg, const std::stri
 std::string checkField(const PointField& field, std::uint32_t point_step, bool require_float,
                        TypeRequirement requirement, std::vector<std::string>& warnings)
 {
-  const std::size_t size = datatypeSize(field.datatype);
+  const std::size_t size = pointFieldSize(field.datatype);
   if (size == 0)
   {
     return "field " + quoteName(field.name) + " has unknown datatype code " + std::to_string(field.datatype);
@@ -599,6 +578,27 @@ ReadReport readUnchecked(const sensor_msgs::PointCloud2& msg, const ReaderOption
   return report;
 }
 }  // namespace
+
+std::size_t pointFieldSize(std::uint8_t datatype)
+{
+  switch (datatype)
+  {
+    case PointField::INT8:
+    case PointField::UINT8:
+      return 1;
+    case PointField::INT16:
+    case PointField::UINT16:
+      return 2;
+    case PointField::INT32:
+    case PointField::UINT32:
+    case PointField::FLOAT32:
+      return 4;
+    case PointField::FLOAT64:
+      return 8;
+    default:
+      return 0;
+  }
+}
 
 ReadReport readPointCloud2(const sensor_msgs::PointCloud2& msg, const ReaderOptions& options, aloam::Cloud& out)
 {

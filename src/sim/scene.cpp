@@ -88,6 +88,12 @@ bool isFinite(const Aabb& box)
 {
   return box.min.allFinite() && box.max.allFinite();
 }
+// A ray that can be cast: finite origin, finite non-zero direction, positive range.
+bool castable(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction, double max_range)
+{
+  return max_range > kMinHitDistance && origin.allFinite() && direction.allFinite() && direction.squaredNorm() > 0.0;
+}
+
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------
@@ -627,8 +633,7 @@ std::optional<Hit> Scene::makeHit(const Ray& ray, double t, const ShapeHit& shap
 std::optional<Hit> Scene::intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
                                     double max_range) const
 {
-  if (!(max_range > kMinHitDistance) || !origin.allFinite() || !direction.allFinite() ||
-      direction.squaredNorm() == 0.0)
+  if (!castable(origin, direction, max_range))
   {
     return std::nullopt;
   }
@@ -714,8 +719,7 @@ std::optional<Hit> Scene::intersect(const Eigen::Vector3d& origin, const Eigen::
 std::optional<Hit> Scene::intersectBruteForce(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
                                               double max_range) const
 {
-  if (!(max_range > kMinHitDistance) || !origin.allFinite() || !direction.allFinite() ||
-      direction.squaredNorm() == 0.0)
+  if (!castable(origin, direction, max_range))
   {
     return std::nullopt;
   }

@@ -11,36 +11,17 @@
 
 #include <gtest/gtest.h>
 
+#include "test_support.h"
 #include "aloam_nodelet/core/cube_map.h"
 
 namespace aloam
 {
 namespace
 {
+using test_support::makePoint;
+using test_support::cloudOf;
 constexpr double kCube = 50.0;
 constexpr double kTolerance = 1e-9;
-
-Point makePoint(double x, double y, double z, float intensity = 0.0f)
-{
-  Point p;
-  p.x = static_cast<float>(x);
-  p.y = static_cast<float>(y);
-  p.z = static_cast<float>(z);
-  p.intensity = intensity;
-  p.time = 0.0f;
-  p.ring = 0;
-  return p;
-}
-
-Cloud cloudOf(const std::vector<Point>& points)
-{
-  Cloud c;
-  for (const Point& p : points)
-  {
-    c.push_back(p);
-  }
-  return c;
-}
 
 // `count` random points in a cube of half side `half_extent` around the origin.
 Cloud randomCloud(std::size_t count, double half_extent, unsigned seed)
@@ -50,7 +31,7 @@ Cloud randomCloud(std::size_t count, double half_extent, unsigned seed)
   Cloud c;
   for (std::size_t i = 0; i < count; ++i)
   {
-    c.push_back(makePoint(u(rng), u(rng), u(rng), static_cast<float>(i)));
+    c.push_back(makePoint(u(rng), u(rng), u(rng), 0, static_cast<float>(i)));
   }
   return c;
 }

@@ -15,6 +15,7 @@ namespace aloam
 {
 namespace
 {
+using test_support::makePoint;
 namespace ts = test_support;
 
 // The known motion between two static sweeps: forward, left, up, yaw and roll.
@@ -162,17 +163,6 @@ DeskewFigures distortedDrive(bool deskew)
   return fig;
 }
 
-Point makePoint(double x, double y, double z, std::uint16_t ring)
-{
-  Point p;
-  p.x = static_cast<float>(x);
-  p.y = static_cast<float>(y);
-  p.z = static_cast<float>(z);
-  p.intensity = 0.0f;
-  p.time = 0.0f;
-  p.ring = ring;
-  return p;
-}
 }  // namespace
 
 // Two static sweeps related by a known SE(3) motion (0.8 m forward, 0.3 m left, 5 cm up, 2 deg yaw,

@@ -16,6 +16,7 @@ namespace aloam
 {
 namespace
 {
+using test_support::makePoint;
 namespace ts = test_support;
 
 constexpr int kSweeps = 8;
@@ -78,18 +79,6 @@ const std::vector<Cloud>& otherDriveSweeps()
     return v;
   }();
   return sweeps;
-}
-
-Point makePoint(double x, double y, double z, std::uint16_t ring = 0, float time = 0.0f)
-{
-  Point p;
-  p.x = static_cast<float>(x);
-  p.y = static_cast<float>(y);
-  p.z = static_cast<float>(z);
-  p.intensity = 1.0f;
-  p.time = time;
-  p.ring = ring;
-  return p;
 }
 
 Cloud repeated(const Point& p, std::size_t n)

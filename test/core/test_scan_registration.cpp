@@ -17,6 +17,7 @@ namespace aloam
 {
 namespace
 {
+using test_support::makePoint;
 namespace ts = test_support;
 
 // Where the static sweeps are taken: on the centreline, a little rotated so nothing is axis-aligned.
@@ -440,17 +441,6 @@ void checkRingsAndTimesWithoutFields(const Sweep& sweep)
   EXPECT_GE(time_ok, kMinTimeAgreement * found);
 }
 
-Point makePoint(double x, double y, double z, std::uint16_t ring)
-{
-  Point p;
-  p.x = static_cast<float>(x);
-  p.y = static_cast<float>(y);
-  p.z = static_cast<float>(z);
-  p.intensity = 0.0f;
-  p.time = 0.0f;
-  p.ring = ring;
-  return p;
-}
 }  // namespace
 
 // VLP16 with ring and time fields (default configuration): sharp points on edges, flat points on planes,

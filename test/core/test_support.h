@@ -123,6 +123,31 @@ inline Cloud driveSweep(const SensorModel& sensor, const Trajectory& drive, int 
   return movingSweep(sensor, [&](double t) { return drive(start + t); });
 }
 
+/// A point with the given coordinates and fields.
+inline Point makePoint(double x, double y, double z, std::uint16_t ring = 0, float intensity = 0.0f,
+                       float time = 0.0f)
+{
+  Point p;
+  p.x = static_cast<float>(x);
+  p.y = static_cast<float>(y);
+  p.z = static_cast<float>(z);
+  p.intensity = intensity;
+  p.time = time;
+  p.ring = ring;
+  return p;
+}
+
+/// A cloud holding `points` (unorganized).
+inline Cloud cloudOf(const std::vector<Point>& points)
+{
+  Cloud c;
+  for (const Point& p : points)
+  {
+    c.push_back(p);
+  }
+  return c;
+}
+
 inline Pose toPose(const Eigen::Isometry3d& iso)
 {
   return Pose(Eigen::Quaterniond(iso.rotation()).normalized(), iso.translation());

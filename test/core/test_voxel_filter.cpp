@@ -10,36 +10,17 @@
 
 #include <gtest/gtest.h>
 
+#include "test_support.h"
 #include "aloam_nodelet/core/voxel_filter.h"
 
 namespace aloam
 {
 namespace
 {
+using test_support::makePoint;
+using test_support::cloudOf;
 constexpr double kLeaf = 0.2;
 constexpr float kCoordinateTolerance = 1e-5f;
-
-Point makePoint(double x, double y, double z, float intensity = 0.0f, float time = 0.0f, std::uint16_t ring = 0)
-{
-  Point p;
-  p.x = static_cast<float>(x);
-  p.y = static_cast<float>(y);
-  p.z = static_cast<float>(z);
-  p.intensity = intensity;
-  p.time = time;
-  p.ring = ring;
-  return p;
-}
-
-Cloud cloudOf(const std::vector<Point>& points)
-{
-  Cloud c;
-  for (const Point& p : points)
-  {
-    c.push_back(p);
-  }
-  return c;
-}
 
 using Voxel = std::tuple<std::int64_t, std::int64_t, std::int64_t>;
 
@@ -71,12 +52,12 @@ std::map<Voxel, std::array<double, 4>> referenceCentroids(const Cloud& in, doubl
 TEST(VoxelFilterTest, OneCentroidPerOccupiedVoxel)
 {
   const Cloud in = cloudOf({
-      makePoint(0.05, 0.05, 0.05, 10.0f, 0.01f, 3),   // voxel (0, 0, 0)
-      makePoint(0.15, 0.11, 0.07, 30.0f, 0.03f, 4),   // voxel (0, 0, 0)
-      makePoint(0.10, 0.02, 0.18, 20.0f, 0.05f, 5),   // voxel (0, 0, 0)
-      makePoint(1.05, 0.05, 0.05, 7.0f, 0.02f, 9),    // voxel (5, 0, 0)
-      makePoint(-0.05, -0.05, -0.05, 1.0f, 0.0f, 1),  // voxel (-1, -1, -1)
-      makePoint(-0.15, -0.19, -0.01, 3.0f, 0.1f, 2),  // voxel (-1, -1, -1)
+      makePoint(0.05, 0.05, 0.05, 3, 10.0f, 0.01f),   // voxel (0, 0, 0)
+      makePoint(0.15, 0.11, 0.07, 4, 30.0f, 0.03f),   // voxel (0, 0, 0)
+      makePoint(0.10, 0.02, 0.18, 5, 20.0f, 0.05f),   // voxel (0, 0, 0)
+      makePoint(1.05, 0.05, 0.05, 9, 7.0f, 0.02f),    // voxel (5, 0, 0)
+      makePoint(-0.05, -0.05, -0.05, 1, 1.0f, 0.0f),  // voxel (-1, -1, -1)
+      makePoint(-0.15, -0.19, -0.01, 2, 3.0f, 0.1f),  // voxel (-1, -1, -1)
   });
   Cloud out;
   EXPECT_EQ(voxelDownsample(in, kLeaf, out), 3u);

@@ -42,27 +42,6 @@ bool hostIsLittleEndian()
   return first_byte == 1;
 }
 
-std::size_t sizeOfType(std::uint8_t datatype)
-{
-  switch (datatype)
-  {
-    case PointField::INT8:
-    case PointField::UINT8:
-      return 1;
-    case PointField::INT16:
-    case PointField::UINT16:
-      return 2;
-    case PointField::INT32:
-    case PointField::UINT32:
-    case PointField::FLOAT32:
-      return 4;
-    case PointField::FLOAT64:
-      return 8;
-    default:
-      return 0;
-  }
-}
-
 template <typename T>
 void storeAs(std::uint8_t* dst, double value, bool big_endian)
 {
@@ -151,7 +130,7 @@ sensor_msgs::PointCloud2 makeCloud(const CloudSpec& spec, const std::vector<Poin
     for (std::size_t f = 0; f < spec.fields.size() && f < points[i].size(); ++f)
     {
       const FieldDef& def = spec.fields[f];
-      if (def.offset + sizeOfType(def.datatype) <= spec.point_step)
+      if (def.offset + aloam::ros_io::pointFieldSize(def.datatype) <= spec.point_step)
       {
         writeValue(base + def.offset, def.datatype, points[i][f], spec.big_endian);
       }
@@ -162,7 +141,7 @@ sensor_msgs::PointCloud2 makeCloud(const CloudSpec& spec, const std::vector<Poin
 
 std::vector<FieldDef> xyzFields(std::uint8_t datatype = PointField::FLOAT32)
 {
-  const std::uint32_t size = static_cast<std::uint32_t>(sizeOfType(datatype));
+  const std::uint32_t size = static_cast<std::uint32_t>(aloam::ros_io::pointFieldSize(datatype));
   return { { "x", datatype, 0 }, { "y", datatype, size }, { "z", datatype, 2 * size } };
 }
 

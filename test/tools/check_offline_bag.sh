@@ -3,6 +3,7 @@
 # rosbag, mapped with deskewing, evaluated against the simulator's exact ground truth. Needs no data.
 # Usage: check_offline_bag.sh BIN_DIR OUT_DIR
 set -euo pipefail
+source "$(dirname "$0")/check_lib.sh"
 bin="$1" out="$2"
 max_drift=1.0   # % over 5-20 m segments (measured 0.46)
 max_ate=0.06    # m (measured 0.023)
@@ -12,14 +13,12 @@ mkdir -p "$out"
   --trajectory "$out/trajectory.txt" --tum "$out/trajectory.tum" | tee "$out/offline.txt"
 "$bin/aloam_eval" --gt "$out/ground_truth.txt" --trajectory "$out/trajectory.txt" \
   --segments 5,10,20 | tee "$out/eval.txt"
-drift=$(awk '/^translation_drift_percent:/ {print $2}' "$out/eval.txt")
-ate=$(awk '/^ate_rmse_m:/ {print $2}' "$out/eval.txt")
+drift=$(figure translation_drift_percent "$out/eval.txt")
+ate=$(figure ate_rmse_m "$out/eval.txt")
 status=0
 [ "$(grep -c . "$out/trajectory.txt")" -eq 40 ] || { echo "FAIL: expected 40 poses"; status=1; }
 [ "$(grep -c . "$out/trajectory.tum")" -eq 40 ] || { echo "FAIL: expected 40 TUM poses"; status=1; }
-awk -v v="$drift" -v m="$max_drift" 'BEGIN {exit !(v != "" && v <= m)}' ||
-  { echo "FAIL: drift $drift % > $max_drift %"; status=1; }
-awk -v v="$ate" -v m="$max_ate" 'BEGIN {exit !(v != "" && v <= m)}' ||
-  { echo "FAIL: ATE $ate m > $max_ate m"; status=1; }
+at_most "drift (%)" "$drift" "$max_drift" || status=1
+at_most "ATE (m)" "$ate" "$max_ate" || status=1
 [ $status -eq 0 ] && echo "PASSED offline bag check: drift $drift % (<= $max_drift), ATE $ate m (<= $max_ate)"
 exit $status

@@ -4,6 +4,7 @@
 # Usage: check_offline_kitti.sh BIN_DIR KITTI_DIR OUT_DIR
 # Exit 0: passed; 1: failed; 77: skipped (no data), with the reason printed.
 set -euo pipefail
+source "$(dirname "$0")/check_lib.sh"
 bin="$1" data="$2" out="$3"
 max_drift=1.449  # A-LOAM, translation drift %
 max_ate=0.167    # A-LOAM, ATE after alignment (m)
@@ -20,14 +21,12 @@ mkdir -p "$out"
 
 frames=$(grep -c . "$out/trajectory.txt")
 expected=$(find "$data/velodyne" -name '*.bin' | wc -l)
-drift=$(awk '/^translation_drift_percent:/ {print $2}' "$out/eval.txt")
-ate=$(awk '/^ate_rmse_m:/ {print $2}' "$out/eval.txt")
+drift=$(figure translation_drift_percent "$out/eval.txt")
+ate=$(figure ate_rmse_m "$out/eval.txt")
 status=0
 [ "$frames" -eq "$expected" ] || { echo "FAIL: $frames poses for $expected scans"; status=1; }
 [ -s "$out/map.pcd" ] || { echo "FAIL: no map written"; status=1; }
-awk -v v="$drift" -v m="$max_drift" 'BEGIN {exit !(v != "" && v <= m)}' ||
-  { echo "FAIL: drift $drift % > $max_drift %"; status=1; }
-awk -v v="$ate" -v m="$max_ate" 'BEGIN {exit !(v != "" && v <= m)}' ||
-  { echo "FAIL: ATE $ate m > $max_ate m"; status=1; }
+at_most "drift (%)" "$drift" "$max_drift" || status=1
+at_most "ATE (m)" "$ate" "$max_ate" || status=1
 [ $status -eq 0 ] && echo "PASSED offline KITTI check: drift $drift % (<= $max_drift), ATE $ate m (<= $max_ate)"
 exit $status

@@ -46,6 +46,9 @@ struct ReadReport
   double time_origin = 0.0;
 };
 
+/// Bytes of one element of a sensor_msgs/PointField datatype; 0 for an unknown datatype.
+std::size_t pointFieldSize(std::uint8_t datatype);
+
 /// Converts `msg` into `out` (unorganized: height 1, is_dense true; organized clouds are flattened
 /// row by row in memory order). Handles any endianness, unaligned fields, row padding, FLOAT32 or
 /// FLOAT64 coordinates, numeric intensity, integer ring and the time fields `time` (seconds, may be
