@@ -1,0 +1,123 @@
+// The messages between the nodelets: in one manager they travel as shared pointers to the core's own
+// types (no copy, no serialization); across processes, machines and rosbag they serialize as the
+// generated aloam_nodelet/FeatureClouds and aloam_nodelet/OdometryFrame messages (as pcl_ros does for
+// pcl::PointCloud).
+#pragma once
+
+#include <memory>
+#include <string>
+
+#include <boost/shared_ptr.hpp>
+#include <ros/message_traits.h>
+#include <ros/serialization.h>
+#include <std_msgs/Header.h>
+
+#include <aloam_nodelet/FeatureClouds.h>
+#include <aloam_nodelet/OdometryFrame.h>
+
+#include "aloam_nodelet/core/feature_set.h"
+#include "aloam_nodelet/core/laser_odometry.h"
+
+namespace aloam
+{
+namespace ros_io
+{
+/// Registration -> odometry: one sweep's features. `features` is never modified after publishing.
+struct StampedFeatureSet
+{
+  std_msgs::Header header;  ///< the input sweep's stamp and frame
+  std::shared_ptr<const FeatureSet> features;
+
+  using Ptr = boost::shared_ptr<StampedFeatureSet>;
+  using ConstPtr = boost::shared_ptr<const StampedFeatureSet>;
+};
+
+/// Odometry -> mapping: one sweep's odometry pose and the clouds mapping needs.
+struct StampedOdometryFrame
+{
+  std_msgs::Header header;     ///< the sweep's stamp; frame_id is the odometry world frame
+  std::string child_frame_id;  ///< the odometry body frame
+  OdometryFrame frame;
+
+  using Ptr = boost::shared_ptr<StampedOdometryFrame>;
+  using ConstPtr = boost::shared_ptr<const StampedOdometryFrame>;
+};
+
+/// Conversions to and from the wire messages (used only when a message is serialized).
+aloam_nodelet::FeatureClouds toWire(const StampedFeatureSet& in);
+void fromWire(const aloam_nodelet::FeatureClouds& in, StampedFeatureSet& out);
+aloam_nodelet::OdometryFrame toWire(const StampedOdometryFrame& in);
+void fromWire(const aloam_nodelet::OdometryFrame& in, StampedOdometryFrame& out);
+
+}  // namespace ros_io
+}  // namespace aloam
+
+namespace ros
+{
+namespace message_traits
+{
+// Traits of an in-process type: those of the generated message `Wire` it serializes as.
+#define ALOAM_STAGE_MESSAGE_TRAITS(T, Wire)                                                                            \
+  template <>                                                                                                          \
+  struct MD5Sum<T>                                                                                                     \
+  {                                                                                                                    \
+    static const char* value() { return MD5Sum<Wire>::value(); }                                                  \
+    static const char* value(const T&) { return value(); }                                                             \
+  };                                                                                                                   \
+  template <>                                                                                                          \
+  struct DataType<T>                                                                                                   \
+  {                                                                                                                    \
+    static const char* value() { return DataType<Wire>::value(); }                                             \
+    static const char* value(const T&) { return value(); }                                                             \
+  };                                                                                                                   \
+  template <>                                                                                                          \
+  struct Definition<T>                                                                                                 \
+  {                                                                                                                    \
+    static const char* value() { return Definition<Wire>::value(); }                                           \
+    static const char* value(const T&) { return value(); }                                                             \
+  };                                                                                                                   \
+  template <>                                                                                                          \
+  struct HasHeader<T> : TrueType                                                                                       \
+  {                                                                                                                    \
+  };
+
+ALOAM_STAGE_MESSAGE_TRAITS(aloam::ros_io::StampedFeatureSet, aloam_nodelet::FeatureClouds)
+ALOAM_STAGE_MESSAGE_TRAITS(aloam::ros_io::StampedOdometryFrame, aloam_nodelet::OdometryFrame)
+#undef ALOAM_STAGE_MESSAGE_TRAITS
+
+}  // namespace message_traits
+
+namespace serialization
+{
+/// Serializes an in-process stage message through its wire message.
+template <typename T>
+struct StageSerializer
+{
+  template <typename Stream>
+  static void write(Stream& stream, const T& m)
+  {
+    stream.next(aloam::ros_io::toWire(m));
+  }
+
+  template <typename Stream>
+  static void read(Stream& stream, T& m)
+  {
+    decltype(aloam::ros_io::toWire(m)) wire;
+    stream.next(wire);
+    aloam::ros_io::fromWire(wire, m);
+  }
+
+  static std::uint32_t serializedLength(const T& m) { return serializationLength(aloam::ros_io::toWire(m)); }
+};
+
+template <>
+struct Serializer<aloam::ros_io::StampedFeatureSet> : StageSerializer<aloam::ros_io::StampedFeatureSet>
+{
+};
+template <>
+struct Serializer<aloam::ros_io::StampedOdometryFrame> : StageSerializer<aloam::ros_io::StampedOdometryFrame>
+{
+};
+
+}  // namespace serialization
+}  // namespace ros

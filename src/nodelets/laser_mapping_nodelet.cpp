@@ -1,0 +1,367 @@
+// Laser mapping nodelet. Every odometry frame is answered at once with a corrected pose
+// (aft_mapped_to_init_high_frec); a worker thread maps the newest frame, skipping (and counting) any that
+// arrive while it is busy, so odometry never waits on mapping.
+#include <atomic>
+#include <condition_variable>
+#include <memory>
+#include <mutex>
+#include <thread>
+
+#include <nav_msgs/Odometry.h>
+#include <nav_msgs/Path.h>
+#include <dynamic_reconfigure/server.h>
+#include <nodelet/nodelet.h>
+#include <pcl/io/pcd_io.h>
+#include <pcl/io/impl/pcd_io.hpp>
+#include <pluginlib/class_list_macros.hpp>
+#include <ros/ros.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <std_srvs/Trigger.h>
+#include <tf2_ros/transform_broadcaster.h>
+
+#include <aloam_nodelet/LaserMappingConfig.h>
+#include <aloam_nodelet/SaveMap.h>
+#include <aloam_nodelet/SaveTrajectory.h>
+
+#include "aloam_nodelet/core/laser_mapping.h"
+#include "aloam_nodelet/eval/trajectory_io.h"
+#include "aloam_nodelet/ros/conversions.h"
+#include "aloam_nodelet/ros/stage_messages.h"
+#include "param_utils.h"
+
+namespace aloam_nodelet
+{
+namespace
+{
+constexpr double kThrottleSeconds = 5.0;
+constexpr double kTimeJumpBackSeconds = 1.0;
+}  // namespace
+
+class LaserMappingNodelet : public nodelet::Nodelet
+{
+public:
+  ~LaserMappingNodelet() override;
+
+private:
+  void onInit() override;
+  void frameCb(const aloam::ros_io::StampedOdometryFrame::ConstPtr& msg);
+  void work();
+  void map(const aloam::ros_io::StampedOdometryFrame& msg);
+  void publishOutputs(const aloam::ros_io::StampedOdometryFrame& msg, const aloam::MappingResult& result);
+  bool saveMapCb(SaveMap::Request& request, SaveMap::Response& response);
+  bool saveTrajectoryCb(SaveTrajectory::Request& request, SaveTrajectory::Response& response);
+  bool resetCb(std_srvs::Trigger::Request& request, std_srvs::Trigger::Response& response);
+  void reconfigureCb(const LaserMappingConfig& config);
+
+  // The core and everything derived from it; held by the worker while it maps a frame.
+  std::mutex core_mutex_;
+  std::unique_ptr<aloam::LaserMapping> mapping_;
+  nav_msgs::Path path_;
+  aloam::eval::Trajectory trajectory_;
+  std::vector<double> trajectory_stamps_;
+  ros::Time last_map_publish_;
+  std::size_t frames_mapped_ = 0;
+
+  // Hand-over of the newest frame to the worker.
+  std::mutex queue_mutex_;
+  std::condition_variable queue_cv_;
+  aloam::ros_io::StampedOdometryFrame::ConstPtr pending_;
+  bool reset_requested_ = false;
+  std::size_t skipped_ = 0;
+  ros::Time last_stamp_;
+  std::atomic<bool> stop_{ false };
+  std::thread worker_;
+
+  // Correction map <- odometry world, for the full-rate answer (updated by the worker).
+  std::mutex correction_mutex_;
+  aloam::Pose correction_;
+
+  std::string map_frame_, child_frame_;
+  bool publish_tf_ = true;
+  std::size_t path_max_poses_ = 10000;
+  double map_publish_period_ = 2.0;
+  int surround_every_ = 5;
+
+  ros::Subscriber frame_sub_;
+  ros::Publisher mapped_pub_, high_rate_pub_, path_pub_, surround_pub_, map_pub_, registered_pub_;
+  ros::ServiceServer save_map_srv_, save_trajectory_srv_, reset_srv_;
+  std::unique_ptr<tf2_ros::TransformBroadcaster> tf_broadcaster_;
+  std::unique_ptr<dynamic_reconfigure::Server<LaserMappingConfig>> reconfigure_server_;
+};
+
+LaserMappingNodelet::~LaserMappingNodelet()
+{
+  stop_ = true;
+  queue_cv_.notify_all();
+  if (worker_.joinable())
+  {
+    worker_.join();
+  }
+}
+
+void LaserMappingNodelet::onInit()
+{
+  ros::NodeHandle& nh = getNodeHandle();
+  ros::NodeHandle& pnh = getPrivateNodeHandle();
+  const std::string& name = getName();
+
+  // Read once at start-up; the rest comes through dynamic_reconfigure (reconfigureCb).
+  pnh.param<std::string>("map_frame", map_frame_, "camera_init");
+  pnh.param<std::string>("child_frame", child_frame_, "aft_mapped");
+  pnh.param("publish_tf", publish_tf_, publish_tf_);
+  path_max_poses_ = static_cast<std::size_t>(boundedParam(pnh, name, "path_max_poses", 10000, 1, 1'000'000));
+  map_publish_period_ = boundedParam(pnh, name, "map_publish_period", map_publish_period_, 0.0, 3600.0);
+  surround_every_ = boundedParam(pnh, name, "surround_every", surround_every_, 1, 1000);
+  mapping_ = std::make_unique<aloam::LaserMapping>();
+  path_.header.frame_id = map_frame_;
+
+  warnOutOfRange<LaserMappingConfig>(pnh, name);
+  reconfigure_server_ = std::make_unique<dynamic_reconfigure::Server<LaserMappingConfig>>(pnh);
+  reconfigure_server_->setCallback([this](LaserMappingConfig& c, std::uint32_t) { reconfigureCb(c); });
+
+  tf_broadcaster_ = std::make_unique<tf2_ros::TransformBroadcaster>();
+  mapped_pub_ = nh.advertise<nav_msgs::Odometry>("aft_mapped_to_init", 10);
+  high_rate_pub_ = nh.advertise<nav_msgs::Odometry>("aft_mapped_to_init_high_frec", 10);
+  path_pub_ = nh.advertise<nav_msgs::Path>("aft_mapped_path", 2);
+  surround_pub_ = nh.advertise<sensor_msgs::PointCloud2>("laser_cloud_surround", 2);
+  map_pub_ = nh.advertise<sensor_msgs::PointCloud2>("laser_cloud_map", 2);
+  registered_pub_ = nh.advertise<sensor_msgs::PointCloud2>("velodyne_cloud_registered", 2);
+  save_map_srv_ = pnh.advertiseService("save_map", &LaserMappingNodelet::saveMapCb, this);
+  save_trajectory_srv_ = pnh.advertiseService("save_trajectory", &LaserMappingNodelet::saveTrajectoryCb, this);
+  reset_srv_ = pnh.advertiseService("reset", &LaserMappingNodelet::resetCb, this);
+
+  worker_ = std::thread(&LaserMappingNodelet::work, this);
+  frame_sub_ = nh.subscribe("laser_odom_frame", 5, &LaserMappingNodelet::frameCb, this);
+}
+
+void LaserMappingNodelet::frameCb(const aloam::ros_io::StampedOdometryFrame::ConstPtr& msg)
+{
+  aloam::Pose corrected;
+  {
+    std::lock_guard<std::mutex> lock(correction_mutex_);
+    corrected = correction_ * msg->frame.pose;
+  }
+  std_msgs::Header header = msg->header;
+  header.frame_id = map_frame_;
+  high_rate_pub_.publish(aloam::ros_io::toOdometryMsg(corrected, header, child_frame_));
+
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  if (!last_stamp_.isZero() && msg->header.stamp + ros::Duration(kTimeJumpBackSeconds) < last_stamp_)
+  {
+    NODELET_WARN("time jumped back %.3f s (looping bag?): map reset", (last_stamp_ - msg->header.stamp).toSec());
+    reset_requested_ = true;
+  }
+  last_stamp_ = msg->header.stamp;
+  if (pending_)
+  {
+    ++skipped_;
+    NODELET_WARN_THROTTLE(kThrottleSeconds, "mapping is behind: %zu frames skipped so far", skipped_);
+  }
+  pending_ = msg;
+  queue_cv_.notify_one();
+}
+
+void LaserMappingNodelet::work()
+{
+  while (!stop_)
+  {
+    aloam::ros_io::StampedOdometryFrame::ConstPtr msg;
+    bool reset = false;
+    {
+      std::unique_lock<std::mutex> lock(queue_mutex_);
+      queue_cv_.wait(lock, [this] { return stop_ || pending_; });
+      if (stop_)
+      {
+        return;
+      }
+      msg.swap(pending_);
+      std::swap(reset, reset_requested_);
+    }
+    std::lock_guard<std::mutex> lock(core_mutex_);
+    if (reset)
+    {
+      mapping_->reset();
+      path_.poses.clear();
+      trajectory_.clear();
+      trajectory_stamps_.clear();
+    }
+    map(*msg);
+  }
+}
+
+void LaserMappingNodelet::map(const aloam::ros_io::StampedOdometryFrame& msg)
+{
+  const aloam::MappingResult result = mapping_->process(msg.frame);
+  {
+    std::lock_guard<std::mutex> lock(correction_mutex_);
+    correction_ = result.correction;
+  }
+  if (result.status == aloam::MappingStatus::kDegraded)
+  {
+    NODELET_WARN_THROTTLE(kThrottleSeconds, "mapping degraded (%d edge, %d plane matches, constraint %.1f)",
+                          result.corner_matches, result.plane_matches, result.constraint);
+  }
+  trajectory_.push_back(result.pose.isometry());
+  trajectory_stamps_.push_back(msg.header.stamp.toSec());
+  ++frames_mapped_;
+  publishOutputs(msg, result);
+}
+
+void LaserMappingNodelet::publishOutputs(const aloam::ros_io::StampedOdometryFrame& msg,
+                                         const aloam::MappingResult& result)
+{
+  std_msgs::Header header;
+  header.stamp = msg.header.stamp;
+  header.frame_id = map_frame_;
+
+  const nav_msgs::Odometry odom = aloam::ros_io::toOdometryMsg(result.pose, header, child_frame_);
+  mapped_pub_.publish(odom);
+  if (publish_tf_)
+  {
+    tf_broadcaster_->sendTransform(aloam::ros_io::toTransformMsg(result.pose, header, child_frame_));
+  }
+
+  geometry_msgs::PoseStamped pose;
+  pose.header = header;
+  pose.pose = odom.pose.pose;
+  path_.poses.push_back(pose);
+  if (path_.poses.size() > path_max_poses_)
+  {
+    path_.poses.erase(path_.poses.begin(), path_.poses.begin() + (path_.poses.size() - path_max_poses_));
+  }
+  if (path_pub_.getNumSubscribers() > 0)
+  {
+    path_.header.stamp = header.stamp;
+    path_pub_.publish(path_);
+  }
+
+  if (registered_pub_.getNumSubscribers() > 0 && msg.frame.full)
+  {
+    aloam::Cloud world;
+    world.points.reserve(msg.frame.full->size());
+    for (const aloam::Point& p : msg.frame.full->points)
+    {
+      world.points.push_back(aloam::transformPoint(result.pose, p));
+    }
+    aloam::setUnorganized(world);
+    auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
+    aloam::ros_io::toPointCloud2(world, header, *cloud);
+    registered_pub_.publish(cloud);
+  }
+  if (surround_pub_.getNumSubscribers() > 0 && frames_mapped_ % static_cast<std::size_t>(surround_every_) == 0)
+  {
+    const aloam::LaserMappingConfig& config = mapping_->config();
+    aloam::Cloud corners, surfs;
+    mapping_->map().gather(mapping_->map().indexOf(result.pose.t), config.submap_half_xy, config.submap_half_z,
+                           corners, surfs);
+    corners += surfs;
+    auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
+    aloam::ros_io::toPointCloud2(corners, header, *cloud);
+    surround_pub_.publish(cloud);
+  }
+  if (map_pub_.getNumSubscribers() > 0 && map_publish_period_ > 0.0 &&
+      (last_map_publish_.isZero() || (header.stamp - last_map_publish_).toSec() >= map_publish_period_ ||
+       header.stamp < last_map_publish_))
+  {
+    last_map_publish_ = header.stamp;
+    aloam::Cloud all;
+    mapping_->map().collectAll(all);
+    auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
+    aloam::ros_io::toPointCloud2(all, header, *cloud);
+    map_pub_.publish(cloud);
+  }
+}
+
+void LaserMappingNodelet::reconfigureCb(const LaserMappingConfig& c)
+{
+  // Waits for the frame being mapped; a new cube size re-buckets the map (no point is lost).
+  std::lock_guard<std::mutex> lock(core_mutex_);
+  aloam::LaserMappingConfig config = mapping_->config();
+  config.cube_size = c.cube_size;
+  config.corner_leaf_size = c.corner_leaf_size;
+  config.surf_leaf_size = c.surf_leaf_size;
+  config.max_iterations = c.max_iterations;
+  config.outer_iterations = c.outer_iterations;
+  config.plane_neighbours = c.plane_neighbours;
+  config.eviction_radius = c.eviction_radius;
+  const std::size_t points_before = mapping_->map().cornerCount() + mapping_->map().surfCount();
+  mapping_->setConfig(config);
+  NODELET_INFO("reconfigured: cube %.1f m, leaves %.2f / %.2f m, %d x %d iterations; map %zu points (was %zu)",
+               config.cube_size, config.corner_leaf_size, config.surf_leaf_size, config.max_iterations,
+               config.outer_iterations, mapping_->map().cornerCount() + mapping_->map().surfCount(), points_before);
+}
+
+bool LaserMappingNodelet::saveMapCb(SaveMap::Request& request, SaveMap::Response& response)
+{
+  aloam::Cloud all;
+  {
+    std::lock_guard<std::mutex> lock(core_mutex_);
+    mapping_->map().collectAll(all);
+  }
+  if (all.empty())
+  {
+    response.success = false;
+    response.message = "the map is empty";
+  }
+  else if (pcl::io::savePCDFileBinary(request.path, all) != 0)
+  {
+    response.success = false;
+    response.message = "cannot write " + request.path;
+  }
+  else
+  {
+    response.success = true;
+    response.message = "wrote " + std::to_string(all.size()) + " points to " + request.path;
+  }
+  return true;
+}
+
+bool LaserMappingNodelet::saveTrajectoryCb(SaveTrajectory::Request& request, SaveTrajectory::Response& response)
+{
+  std::lock_guard<std::mutex> lock(core_mutex_);
+  try
+  {
+    if (request.format == "tum")
+    {
+      aloam::eval::writeTumTrajectory(request.path, trajectory_, trajectory_stamps_);
+    }
+    else if (request.format == "kitti" || request.format.empty())
+    {
+      aloam::eval::Trajectory relative;
+      relative.reserve(trajectory_.size());
+      for (const Eigen::Isometry3d& pose : trajectory_)
+      {
+        relative.push_back(trajectory_.front().inverse() * pose);
+      }
+      aloam::eval::writeKittiPoses(request.path, relative);
+    }
+    else
+    {
+      response.success = false;
+      response.message = "unknown format '" + request.format + "' (kitti or tum)";
+      return true;
+    }
+  }
+  catch (const std::exception& e)
+  {
+    response.success = false;
+    response.message = e.what();
+    return true;
+  }
+  response.success = true;
+  response.message = "wrote " + std::to_string(trajectory_.size()) + " poses to " + request.path;
+  return true;
+}
+
+bool LaserMappingNodelet::resetCb(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response)
+{
+  std::lock_guard<std::mutex> lock(queue_mutex_);
+  reset_requested_ = true;
+  response.success = true;
+  response.message = "map reset before the next frame";
+  return true;
+}
+
+}  // namespace aloam_nodelet
+
+PLUGINLIB_EXPORT_CLASS(aloam_nodelet::LaserMappingNodelet, nodelet::Nodelet)

@@ -1,0 +1,173 @@
+// Laser odometry nodelet: FeatureSet in, odometry frame out, both as shared pointers.
+#include <memory>
+#include <mutex>
+
+#include <nav_msgs/Odometry.h>
+#include <nav_msgs/Path.h>
+#include <dynamic_reconfigure/server.h>
+#include <nodelet/nodelet.h>
+#include <pluginlib/class_list_macros.hpp>
+#include <ros/ros.h>
+#include <sensor_msgs/PointCloud2.h>
+#include <std_srvs/Trigger.h>
+
+#include <aloam_nodelet/LaserOdometryConfig.h>
+
+#include "aloam_nodelet/core/laser_odometry.h"
+#include "aloam_nodelet/ros/conversions.h"
+#include "aloam_nodelet/ros/stage_messages.h"
+#include "param_utils.h"
+
+namespace aloam_nodelet
+{
+namespace
+{
+constexpr double kThrottleSeconds = 5.0;
+// A stamp this far before the previous one means the input started over (a looping bag).
+constexpr double kTimeJumpBackSeconds = 1.0;
+}  // namespace
+
+class LaserOdometryNodelet : public nodelet::Nodelet
+{
+private:
+  void onInit() override;
+  void featuresCb(const aloam::ros_io::StampedFeatureSet::ConstPtr& msg);
+  bool resetCb(std_srvs::Trigger::Request& request, std_srvs::Trigger::Response& response);
+  void reconfigureCb(const LaserOdometryConfig& config);
+  void publishCloud(const ros::Publisher& pub, const std::shared_ptr<const aloam::Cloud>& cloud,
+                    const std_msgs::Header& header) const;
+  void resetLocked();
+
+  std::mutex mutex_;  // guards the core, the path and the time bookkeeping
+  std::unique_ptr<aloam::LaserOdometry> odometry_;
+  std::string world_frame_, child_frame_;
+  std::size_t path_max_poses_ = 10000;
+  nav_msgs::Path path_;
+  ros::Time last_stamp_;
+
+  ros::Subscriber features_sub_;
+  ros::Publisher frame_pub_, odom_pub_, path_pub_, corner_pub_, surf_pub_, full_pub_;
+  ros::ServiceServer reset_srv_;
+  std::unique_ptr<dynamic_reconfigure::Server<LaserOdometryConfig>> reconfigure_server_;
+};
+
+void LaserOdometryNodelet::onInit()
+{
+  ros::NodeHandle& nh = getNodeHandle();
+  ros::NodeHandle& pnh = getPrivateNodeHandle();
+  const std::string& name = getName();
+
+  // Read once at start-up; the rest comes through dynamic_reconfigure (reconfigureCb).
+  aloam::LaserOdometryConfig config;
+  pnh.param("constant_velocity", config.constant_velocity, config.constant_velocity);
+  pnh.param<std::string>("world_frame", world_frame_, "camera_init");
+  pnh.param<std::string>("child_frame", child_frame_, "laser_odom");
+  path_max_poses_ = static_cast<std::size_t>(boundedParam(pnh, name, "path_max_poses", 10000, 1, 1'000'000));
+  odometry_ = std::make_unique<aloam::LaserOdometry>(config);
+  path_.header.frame_id = world_frame_;
+
+  warnOutOfRange<LaserOdometryConfig>(pnh, name);
+  reconfigure_server_ = std::make_unique<dynamic_reconfigure::Server<LaserOdometryConfig>>(pnh);
+  reconfigure_server_->setCallback([this](LaserOdometryConfig& c, std::uint32_t) { reconfigureCb(c); });
+
+  frame_pub_ = nh.advertise<aloam::ros_io::StampedOdometryFrame>("laser_odom_frame", 2);
+  odom_pub_ = nh.advertise<nav_msgs::Odometry>("laser_odom_to_init", 10);
+  path_pub_ = nh.advertise<nav_msgs::Path>("laser_odom_path", 2);
+  corner_pub_ = nh.advertise<sensor_msgs::PointCloud2>("laser_cloud_corner_last", 2);
+  surf_pub_ = nh.advertise<sensor_msgs::PointCloud2>("laser_cloud_surf_last", 2);
+  full_pub_ = nh.advertise<sensor_msgs::PointCloud2>("velodyne_cloud_3", 2);
+  reset_srv_ = pnh.advertiseService("reset", &LaserOdometryNodelet::resetCb, this);
+  features_sub_ = nh.subscribe("laser_features", 2, &LaserOdometryNodelet::featuresCb, this);
+}
+
+void LaserOdometryNodelet::reconfigureCb(const LaserOdometryConfig& c)
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  aloam::LaserOdometryConfig config = odometry_->config();
+  config.max_iterations = c.max_iterations;
+  config.outer_iterations = c.outer_iterations;
+  config.distance_sq_threshold = c.distance_sq_threshold;
+  config.nearby_scan = c.nearby_scan;
+  config.deskew = c.deskew;
+  odometry_->setConfig(config);  // applies from the next sweep
+}
+
+void LaserOdometryNodelet::resetLocked()
+{
+  odometry_->reset();
+  path_.poses.clear();
+  last_stamp_ = ros::Time();
+}
+
+bool LaserOdometryNodelet::resetCb(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response)
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  resetLocked();
+  response.success = true;
+  response.message = "odometry reset: the next sweep starts a new trajectory";
+  return true;
+}
+
+void LaserOdometryNodelet::publishCloud(const ros::Publisher& pub, const std::shared_ptr<const aloam::Cloud>& cloud,
+                                        const std_msgs::Header& header) const
+{
+  if (!cloud || pub.getNumSubscribers() == 0)
+  {
+    return;
+  }
+  auto msg = boost::make_shared<sensor_msgs::PointCloud2>();
+  aloam::ros_io::toPointCloud2(*cloud, header, *msg);
+  pub.publish(msg);
+}
+
+void LaserOdometryNodelet::featuresCb(const aloam::ros_io::StampedFeatureSet::ConstPtr& msg)
+{
+  if (!msg->features)
+  {
+    return;
+  }
+  std::lock_guard<std::mutex> lock(mutex_);
+  const ros::Time stamp = msg->header.stamp;
+  if (!last_stamp_.isZero() && stamp + ros::Duration(kTimeJumpBackSeconds) < last_stamp_)
+  {
+    NODELET_WARN("time jumped back %.3f s (looping bag?): odometry reset", (last_stamp_ - stamp).toSec());
+    resetLocked();
+  }
+  last_stamp_ = stamp;
+
+  auto out = boost::make_shared<aloam::ros_io::StampedOdometryFrame>();
+  out->frame = odometry_->process(msg->features);
+  out->header.stamp = stamp;
+  out->header.frame_id = world_frame_;
+  out->child_frame_id = child_frame_;
+  if (out->frame.status == aloam::OdometryStatus::kDegraded)
+  {
+    NODELET_WARN_THROTTLE(kThrottleSeconds, "odometry degraded (%d edge, %d plane matches, constraint %.1f)",
+                          out->frame.corner_matches, out->frame.plane_matches, out->frame.constraint);
+  }
+  frame_pub_.publish(out);  // never modified after this
+
+  const nav_msgs::Odometry odom = aloam::ros_io::toOdometryMsg(out->frame.pose, out->header, child_frame_);
+  odom_pub_.publish(odom);
+  geometry_msgs::PoseStamped pose;
+  pose.header = out->header;
+  pose.pose = odom.pose.pose;
+  path_.poses.push_back(pose);
+  if (path_.poses.size() > path_max_poses_)
+  {
+    path_.poses.erase(path_.poses.begin(), path_.poses.begin() + (path_.poses.size() - path_max_poses_));
+  }
+  if (path_pub_.getNumSubscribers() > 0)
+  {
+    path_.header.stamp = stamp;
+    path_pub_.publish(path_);
+  }
+  std_msgs::Header sensor_header = msg->header;
+  publishCloud(corner_pub_, out->frame.corners, sensor_header);
+  publishCloud(surf_pub_, out->frame.surfs, sensor_header);
+  publishCloud(full_pub_, out->frame.full, sensor_header);
+}
+
+}  // namespace aloam_nodelet
+
+PLUGINLIB_EXPORT_CLASS(aloam_nodelet::LaserOdometryNodelet, nodelet::Nodelet)

@@ -1,0 +1,172 @@
+// Scan registration nodelet: PointCloud2 in (read in place), one FeatureSet out as a shared pointer.
+#include <memory>
+#include <mutex>
+
+#include <dynamic_reconfigure/server.h>
+#include <nodelet/nodelet.h>
+#include <pluginlib/class_list_macros.hpp>
+#include <ros/ros.h>
+#include <sensor_msgs/PointCloud2.h>
+
+#include <aloam_nodelet/ScanRegistrationConfig.h>
+
+#include "aloam_nodelet/core/scan_registration.h"
+#include "aloam_nodelet/ros/conversions.h"
+#include "aloam_nodelet/ros/pointcloud2_reader.h"
+#include "aloam_nodelet/ros/stage_messages.h"
+#include "param_utils.h"
+
+namespace aloam_nodelet
+{
+namespace
+{
+constexpr double kThrottleSeconds = 5.0;
+constexpr int kMaxBeams = 256;
+}  // namespace
+
+class ScanRegistrationNodelet : public nodelet::Nodelet
+{
+private:
+  void onInit() override;
+  void pointsCb(const sensor_msgs::PointCloud2::ConstPtr& msg);
+  void reconfigureCb(ScanRegistrationConfig& config, std::uint32_t level);
+  void publishCloud(const ros::Publisher& pub, const aloam::Cloud& cloud, const std_msgs::Header& header) const;
+  aloam::SensorModel sensorModel(const std::string& preset, int beams) const;
+
+  std::mutex mutex_;  // guards the core and its configuration
+  std::unique_ptr<aloam::ScanRegistration> registration_;
+  aloam::ros_io::ReaderOptions reader_options_;
+  aloam::Cloud input_;  // reused between sweeps
+  double min_elevation_deg_ = -15.0, max_elevation_deg_ = 15.0;  // for a beam count instead of a preset
+
+  std::unique_ptr<dynamic_reconfigure::Server<ScanRegistrationConfig>> reconfigure_server_;
+
+  ros::Subscriber points_sub_;
+  ros::Publisher features_pub_;
+  ros::Publisher sharp_pub_, less_sharp_pub_, flat_pub_, less_flat_pub_, full_pub_;
+};
+
+aloam::SensorModel ScanRegistrationNodelet::sensorModel(const std::string& preset, int beams) const
+{
+  if (beams > 0)
+  {
+    NODELET_INFO("sensor: %d beams from %.2f to %.2f deg", beams, min_elevation_deg_, max_elevation_deg_);
+    return aloam::SensorModel::uniform(beams, min_elevation_deg_, max_elevation_deg_);
+  }
+  if (const auto model = aloam::SensorModel::fromPreset(preset))
+  {
+    NODELET_INFO("sensor: %s", preset.c_str());
+    return *model;
+  }
+  NODELET_ERROR("unknown sensor preset '%s' (VLP16, HDL32, HDL64, VLP32C, OS1_64, OS0_64); using VLP16",
+                preset.c_str());
+  return *aloam::SensorModel::fromPreset("VLP16");
+}
+
+void ScanRegistrationNodelet::onInit()
+{
+  ros::NodeHandle& nh = getNodeHandle();
+  ros::NodeHandle& pnh = getPrivateNodeHandle();
+  const std::string& name = getName();
+
+  // Read once at start-up; the rest comes through dynamic_reconfigure (reconfigureCb).
+  aloam::ScanRegistrationConfig config;
+  config.scan_period = boundedParam(pnh, name, "scan_period", config.scan_period, 0.01, 1.0);
+  pnh.param("min_elevation_deg", min_elevation_deg_, min_elevation_deg_);
+  pnh.param("max_elevation_deg", max_elevation_deg_, max_elevation_deg_);
+  reader_options_.scan_period = config.scan_period;
+  reader_options_.max_points = static_cast<std::size_t>(
+      boundedParam(pnh, name, "max_points", static_cast<int>(reader_options_.max_points), 1000, 20'000'000));
+  registration_ = std::make_unique<aloam::ScanRegistration>(config);
+
+  warnOutOfRange<ScanRegistrationConfig>(pnh, name);
+  reconfigure_server_ = std::make_unique<dynamic_reconfigure::Server<ScanRegistrationConfig>>(pnh);
+  reconfigure_server_->setCallback(
+      [this](ScanRegistrationConfig& c, std::uint32_t level) { reconfigureCb(c, level); });
+
+  features_pub_ = nh.advertise<aloam::ros_io::StampedFeatureSet>("laser_features", 2);
+  sharp_pub_ = nh.advertise<sensor_msgs::PointCloud2>("laser_cloud_sharp", 2);
+  less_sharp_pub_ = nh.advertise<sensor_msgs::PointCloud2>("laser_cloud_less_sharp", 2);
+  flat_pub_ = nh.advertise<sensor_msgs::PointCloud2>("laser_cloud_flat", 2);
+  less_flat_pub_ = nh.advertise<sensor_msgs::PointCloud2>("laser_cloud_less_flat", 2);
+  full_pub_ = nh.advertise<sensor_msgs::PointCloud2>("velodyne_cloud_2", 2);
+  // Queue of one: always the newest sweep.
+  points_sub_ = nh.subscribe("velodyne_points", 1, &ScanRegistrationNodelet::pointsCb, this);
+}
+
+void ScanRegistrationNodelet::reconfigureCb(ScanRegistrationConfig& c, std::uint32_t level)
+{
+  constexpr std::uint32_t kReinitialise = 1;  // level of the ring model in ScanRegistration.cfg
+  std::lock_guard<std::mutex> lock(mutex_);
+  aloam::ScanRegistrationConfig config = registration_->config();
+  if (level & kReinitialise)
+  {
+    config.sensor = sensorModel(c.sensor, c.beams);
+  }
+  if (c.maximum_range <= c.minimum_range)
+  {
+    NODELET_WARN("maximum_range %.2f <= minimum_range %.2f; using minimum_range + 1 m", c.maximum_range,
+                 c.minimum_range);
+    c.maximum_range = c.minimum_range + 1.0;
+  }
+  config.minimum_range = c.minimum_range;
+  config.maximum_range = c.maximum_range;
+  config.less_flat_leaf_size = c.less_flat_leaf_size;
+  config.curvature_threshold = c.curvature_threshold;
+  config.reject_occluded = c.reject_occluded;
+  registration_->setConfig(config);  // applies from the next sweep
+}
+
+void ScanRegistrationNodelet::publishCloud(const ros::Publisher& pub, const aloam::Cloud& cloud,
+                                           const std_msgs::Header& header) const
+{
+  if (pub.getNumSubscribers() == 0)
+  {
+    return;
+  }
+  auto msg = boost::make_shared<sensor_msgs::PointCloud2>();
+  aloam::ros_io::toPointCloud2(cloud, header, *msg);
+  pub.publish(msg);
+}
+
+void ScanRegistrationNodelet::pointsCb(const sensor_msgs::PointCloud2::ConstPtr& msg)
+{
+  std::lock_guard<std::mutex> lock(mutex_);
+  const aloam::ros_io::ReadReport report = aloam::ros_io::readPointCloud2(*msg, reader_options_, input_);
+  for (const std::string& warning : report.warnings)
+  {
+    NODELET_WARN_STREAM_THROTTLE(kThrottleSeconds, "velodyne_points: " << warning);
+  }
+  if (!report.ok)
+  {
+    NODELET_WARN_STREAM_THROTTLE(kThrottleSeconds, "velodyne_points: sweep skipped: " << report.error);
+    return;
+  }
+
+  auto features = std::make_shared<aloam::FeatureSet>();
+  if (!registration_->process(input_, msg->header.stamp.toSec(), report.has_ring, report.has_time, *features))
+  {
+    NODELET_WARN_THROTTLE(kThrottleSeconds, "velodyne_points: sweep skipped: %zu of %zu points usable",
+                          features->stats.points_used, features->stats.points_in);
+    return;
+  }
+  if (features->stats.unassigned_ring > 0)
+  {
+    NODELET_DEBUG("%zu points fit no beam of the sensor model", features->stats.unassigned_ring);
+  }
+
+  auto out = boost::make_shared<aloam::ros_io::StampedFeatureSet>();
+  out->header = msg->header;
+  out->features = features;
+  features_pub_.publish(out);  // never modified after this
+
+  publishCloud(sharp_pub_, features->sharp, msg->header);
+  publishCloud(less_sharp_pub_, features->less_sharp, msg->header);
+  publishCloud(flat_pub_, features->flat, msg->header);
+  publishCloud(less_flat_pub_, features->less_flat, msg->header);
+  publishCloud(full_pub_, features->full, msg->header);
+}
+
+}  // namespace aloam_nodelet
+
+PLUGINLIB_EXPORT_CLASS(aloam_nodelet::ScanRegistrationNodelet, nodelet::Nodelet)
