@@ -4,6 +4,7 @@
 #include <atomic>
 #include <condition_variable>
 #include <memory>
+#include <optional>
 #include <mutex>
 #include <thread>
 
@@ -17,7 +18,10 @@
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
 #include <std_srvs/Trigger.h>
+#include <tf2_eigen/tf2_eigen.h>
+#include <tf2_ros/buffer.h>
 #include <tf2_ros/transform_broadcaster.h>
+#include <tf2_ros/transform_listener.h>
 
 #include <aloam_nodelet/LaserMappingConfig.h>
 #include <aloam_nodelet/SaveMap.h>
@@ -28,6 +32,7 @@
 #include "aloam_nodelet/ros/conversions.h"
 #include "aloam_nodelet/ros/stage_messages.h"
 #include "param_utils.h"
+#include "stage_monitor.h"
 
 namespace aloam_nodelet
 {
@@ -48,6 +53,7 @@ private:
   void work();
   void map(const aloam::ros_io::StampedOdometryFrame& msg);
   void publishOutputs(const aloam::ros_io::StampedOdometryFrame& msg, const aloam::MappingResult& result);
+  std::optional<aloam::Pose> baseFromSensor(const std::string& sensor_frame);
   bool saveMapCb(SaveMap::Request& request, SaveMap::Response& response);
   bool saveTrajectoryCb(SaveTrajectory::Request& request, SaveTrajectory::Response& response);
   bool resetCb(std_srvs::Trigger::Request& request, std_srvs::Trigger::Response& response);
@@ -61,6 +67,9 @@ private:
   std::vector<double> trajectory_stamps_;
   ros::Time last_map_publish_;
   std::size_t frames_mapped_ = 0;
+  aloam::MappingResult last_result_;
+  std::size_t degraded_frames_ = 0;
+  StageMonitor monitor_;
 
   // Hand-over of the newest frame to the worker.
   std::mutex queue_mutex_;
@@ -72,11 +81,17 @@ private:
   std::atomic<bool> stop_{ false };
   std::thread worker_;
 
-  // Correction map <- odometry world, for the full-rate answer (updated by the worker).
+  // Correction map <- odometry world, for the full-rate answer (updated by the worker), and the
+  // base_link <- sensor extrinsic for REP 105 frames (looked up once).
   std::mutex correction_mutex_;
   aloam::Pose correction_;
+  std::optional<aloam::Pose> base_from_sensor_;
 
   std::string map_frame_, child_frame_;
+  // REP 105: map -> odom -> base_link instead of camera_init -> aft_mapped. odom and map are base_link
+  // at the first sweep.
+  bool rep105_ = false;
+  std::string rep105_map_frame_, odom_frame_, base_frame_;
   bool publish_tf_ = true;
   std::size_t path_max_poses_ = 10000;
   double map_publish_period_ = 2.0;
@@ -86,6 +101,8 @@ private:
   ros::Publisher mapped_pub_, high_rate_pub_, path_pub_, surround_pub_, map_pub_, registered_pub_;
   ros::ServiceServer save_map_srv_, save_trajectory_srv_, reset_srv_;
   std::unique_ptr<tf2_ros::TransformBroadcaster> tf_broadcaster_;
+  tf2_ros::Buffer tf_buffer_;
+  std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
   std::unique_ptr<dynamic_reconfigure::Server<LaserMappingConfig>> reconfigure_server_;
 };
 
@@ -109,6 +126,16 @@ void LaserMappingNodelet::onInit()
   pnh.param<std::string>("map_frame", map_frame_, "camera_init");
   pnh.param<std::string>("child_frame", child_frame_, "aft_mapped");
   pnh.param("publish_tf", publish_tf_, publish_tf_);
+  std::string tf_mode = "aloam";
+  pnh.param("tf_mode", tf_mode, tf_mode);
+  if (tf_mode != "aloam" && tf_mode != "rep105")
+  {
+    NODELET_WARN("tf_mode '%s' is neither aloam nor rep105; using aloam", tf_mode.c_str());
+  }
+  rep105_ = tf_mode == "rep105";
+  pnh.param<std::string>("rep105_map_frame", rep105_map_frame_, "map");
+  pnh.param<std::string>("odom_frame", odom_frame_, "odom");
+  pnh.param<std::string>("base_frame", base_frame_, "base_link");
   path_max_poses_ = static_cast<std::size_t>(boundedParam(pnh, name, "path_max_poses", 10000, 1, 1'000'000));
   map_publish_period_ = boundedParam(pnh, name, "map_publish_period", map_publish_period_, 0.0, 3600.0);
   surround_every_ = boundedParam(pnh, name, "surround_every", surround_every_, 1, 1000);
@@ -120,6 +147,10 @@ void LaserMappingNodelet::onInit()
   reconfigure_server_->setCallback([this](LaserMappingConfig& c, std::uint32_t) { reconfigureCb(c); });
 
   tf_broadcaster_ = std::make_unique<tf2_ros::TransformBroadcaster>();
+  if (rep105_)
+  {
+    tf_listener_ = std::make_unique<tf2_ros::TransformListener>(tf_buffer_);
+  }
   mapped_pub_ = nh.advertise<nav_msgs::Odometry>("aft_mapped_to_init", 10);
   high_rate_pub_ = nh.advertise<nav_msgs::Odometry>("aft_mapped_to_init_high_frec", 10);
   path_pub_ = nh.advertise<nav_msgs::Path>("aft_mapped_path", 2);
@@ -130,6 +161,25 @@ void LaserMappingNodelet::onInit()
   save_trajectory_srv_ = pnh.advertiseService("save_trajectory", &LaserMappingNodelet::saveTrajectoryCb, this);
   reset_srv_ = pnh.advertiseService("reset", &LaserMappingNodelet::resetCb, this);
 
+  monitor_.init(nh, pnh, name, [this](diagnostic_updater::DiagnosticStatusWrapper& s) {
+    {
+      std::lock_guard<std::mutex> lock(queue_mutex_);
+      s.add("frames skipped (mapping behind)", skipped_);
+    }
+    std::lock_guard<std::mutex> lock(core_mutex_);
+    s.add("edge matches", last_result_.corner_matches);
+    s.add("plane matches", last_result_.plane_matches);
+    s.addf("constraint (degenerate below min)", "%.1f", last_result_.constraint);
+    s.add("degraded frames", degraded_frames_);
+    s.add("map edge points", last_result_.map_corners);
+    s.add("map plane points", last_result_.map_surfs);
+    s.add("map cubes", last_result_.cubes);
+    s.add("cubes evicted", mapping_->totalEvictedCubes());
+    if (last_result_.status == aloam::MappingStatus::kDegraded)
+    {
+      s.summary(diagnostic_msgs::DiagnosticStatus::WARN, "degraded: too few or degenerate matches, prediction used");
+    }
+  });
   worker_ = std::thread(&LaserMappingNodelet::work, this);
   frame_sub_ = nh.subscribe("laser_odom_frame", 5, &LaserMappingNodelet::frameCb, this);
 }
@@ -144,6 +194,15 @@ void LaserMappingNodelet::frameCb(const aloam::ros_io::StampedOdometryFrame::Con
   std_msgs::Header header = msg->header;
   header.frame_id = map_frame_;
   high_rate_pub_.publish(aloam::ros_io::toOdometryMsg(corrected, header, child_frame_));
+  if (rep105_ && publish_tf_)
+  {
+    if (const auto base_from_sensor = baseFromSensor(msg->sensor_frame_id))
+    {
+      header.frame_id = odom_frame_;
+      const aloam::Pose odom_to_base = *base_from_sensor * msg->frame.pose * base_from_sensor->inverse();
+      tf_broadcaster_->sendTransform(aloam::ros_io::toTransformMsg(odom_to_base, header, base_frame_));
+    }
+  }
 
   std::lock_guard<std::mutex> lock(queue_mutex_);
   if (!last_stamp_.isZero() && msg->header.stamp + ros::Duration(kTimeJumpBackSeconds) < last_stamp_)
@@ -159,6 +218,35 @@ void LaserMappingNodelet::frameCb(const aloam::ros_io::StampedOdometryFrame::Con
   }
   pending_ = msg;
   queue_cv_.notify_one();
+}
+
+std::optional<aloam::Pose> LaserMappingNodelet::baseFromSensor(const std::string& sensor_frame)
+{
+  {
+    std::lock_guard<std::mutex> lock(correction_mutex_);
+    if (base_from_sensor_)
+    {
+      return base_from_sensor_;
+    }
+  }
+  aloam::Pose extrinsic;
+  if (!sensor_frame.empty() && sensor_frame != base_frame_)
+  {
+    try
+    {
+      const geometry_msgs::TransformStamped t = tf_buffer_.lookupTransform(base_frame_, sensor_frame, ros::Time(0));
+      extrinsic = aloam::Pose(tf2::transformToEigen(t));
+    }
+    catch (const tf2::TransformException& e)
+    {
+      NODELET_WARN_THROTTLE(kThrottleSeconds, "rep105: no transform %s <- %s yet (%s)", base_frame_.c_str(),
+                            sensor_frame.c_str(), e.what());
+      return std::nullopt;
+    }
+  }
+  std::lock_guard<std::mutex> lock(correction_mutex_);
+  base_from_sensor_ = extrinsic;
+  return base_from_sensor_;
 }
 
 void LaserMappingNodelet::work()
@@ -177,15 +265,19 @@ void LaserMappingNodelet::work()
       msg.swap(pending_);
       std::swap(reset, reset_requested_);
     }
-    std::lock_guard<std::mutex> lock(core_mutex_);
-    if (reset)
+    const auto start = std::chrono::steady_clock::now();
     {
-      mapping_->reset();
-      path_.poses.clear();
-      trajectory_.clear();
-      trajectory_stamps_.clear();
+      std::lock_guard<std::mutex> lock(core_mutex_);
+      if (reset)
+      {
+        mapping_->reset();
+        path_.poses.clear();
+        trajectory_.clear();
+        trajectory_stamps_.clear();
+      }
+      map(*msg);
     }
-    map(*msg);
+    monitor_.frameDone(msSince(start));
   }
 }
 
@@ -196,8 +288,10 @@ void LaserMappingNodelet::map(const aloam::ros_io::StampedOdometryFrame& msg)
     std::lock_guard<std::mutex> lock(correction_mutex_);
     correction_ = result.correction;
   }
+  last_result_ = result;
   if (result.status == aloam::MappingStatus::kDegraded)
   {
+    ++degraded_frames_;
     NODELET_WARN_THROTTLE(kThrottleSeconds, "mapping degraded (%d edge, %d plane matches, constraint %.1f)",
                           result.corner_matches, result.plane_matches, result.constraint);
   }
@@ -216,9 +310,24 @@ void LaserMappingNodelet::publishOutputs(const aloam::ros_io::StampedOdometryFra
 
   const nav_msgs::Odometry odom = aloam::ros_io::toOdometryMsg(result.pose, header, child_frame_);
   mapped_pub_.publish(odom);
-  if (publish_tf_)
+  if (publish_tf_ && !rep105_)
   {
     tf_broadcaster_->sendTransform(aloam::ros_io::toTransformMsg(result.pose, header, child_frame_));
+  }
+  else if (publish_tf_)
+  {
+    std::optional<aloam::Pose> base_from_sensor;
+    {
+      std::lock_guard<std::mutex> lock(correction_mutex_);
+      base_from_sensor = base_from_sensor_;
+    }
+    if (base_from_sensor)
+    {
+      std_msgs::Header tf_header = header;
+      tf_header.frame_id = rep105_map_frame_;
+      const aloam::Pose map_to_odom = *base_from_sensor * result.correction * base_from_sensor->inverse();
+      tf_broadcaster_->sendTransform(aloam::ros_io::toTransformMsg(map_to_odom, tf_header, odom_frame_));
+    }
   }
 
   geometry_msgs::PoseStamped pose;

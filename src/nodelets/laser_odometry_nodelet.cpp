@@ -17,6 +17,7 @@
 #include "aloam_nodelet/ros/conversions.h"
 #include "aloam_nodelet/ros/stage_messages.h"
 #include "param_utils.h"
+#include "stage_monitor.h"
 
 namespace aloam_nodelet
 {
@@ -32,6 +33,7 @@ class LaserOdometryNodelet : public nodelet::Nodelet
 private:
   void onInit() override;
   void featuresCb(const aloam::ros_io::StampedFeatureSet::ConstPtr& msg);
+  void process(const aloam::ros_io::StampedFeatureSet::ConstPtr& msg);
   bool resetCb(std_srvs::Trigger::Request& request, std_srvs::Trigger::Response& response);
   void reconfigureCb(const LaserOdometryConfig& config);
   void publishCloud(const ros::Publisher& pub, const std::shared_ptr<const aloam::Cloud>& cloud,
@@ -44,6 +46,9 @@ private:
   std::size_t path_max_poses_ = 10000;
   nav_msgs::Path path_;
   ros::Time last_stamp_;
+  aloam::OdometryFrame last_frame_;  // for diagnostics (clouds not kept)
+  std::size_t degraded_frames_ = 0;
+  StageMonitor monitor_;
 
   ros::Subscriber features_sub_;
   ros::Publisher frame_pub_, odom_pub_, path_pub_, corner_pub_, surf_pub_, full_pub_;
@@ -77,6 +82,17 @@ void LaserOdometryNodelet::onInit()
   surf_pub_ = nh.advertise<sensor_msgs::PointCloud2>("laser_cloud_surf_last", 2);
   full_pub_ = nh.advertise<sensor_msgs::PointCloud2>("velodyne_cloud_3", 2);
   reset_srv_ = pnh.advertiseService("reset", &LaserOdometryNodelet::resetCb, this);
+  monitor_.init(nh, pnh, name, [this](diagnostic_updater::DiagnosticStatusWrapper& s) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    s.add("edge matches", last_frame_.corner_matches);
+    s.add("plane matches", last_frame_.plane_matches);
+    s.addf("constraint (degenerate below min)", "%.1f", last_frame_.constraint);
+    s.add("degraded frames", degraded_frames_);
+    if (last_frame_.status == aloam::OdometryStatus::kDegraded)
+    {
+      s.summary(diagnostic_msgs::DiagnosticStatus::WARN, "degraded: too few or degenerate matches, motion prior used");
+    }
+  });
   features_sub_ = nh.subscribe("laser_features", 2, &LaserOdometryNodelet::featuresCb, this);
 }
 
@@ -126,6 +142,13 @@ void LaserOdometryNodelet::featuresCb(const aloam::ros_io::StampedFeatureSet::Co
   {
     return;
   }
+  const auto start = std::chrono::steady_clock::now();
+  process(msg);
+  monitor_.frameDone(msSince(start));
+}
+
+void LaserOdometryNodelet::process(const aloam::ros_io::StampedFeatureSet::ConstPtr& msg)
+{
   std::lock_guard<std::mutex> lock(mutex_);
   const ros::Time stamp = msg->header.stamp;
   if (!last_stamp_.isZero() && stamp + ros::Duration(kTimeJumpBackSeconds) < last_stamp_)
@@ -140,8 +163,14 @@ void LaserOdometryNodelet::featuresCb(const aloam::ros_io::StampedFeatureSet::Co
   out->header.stamp = stamp;
   out->header.frame_id = world_frame_;
   out->child_frame_id = child_frame_;
+  out->sensor_frame_id = msg->header.frame_id;
+  last_frame_ = out->frame;
+  last_frame_.corners.reset();
+  last_frame_.surfs.reset();
+  last_frame_.full.reset();
   if (out->frame.status == aloam::OdometryStatus::kDegraded)
   {
+    ++degraded_frames_;
     NODELET_WARN_THROTTLE(kThrottleSeconds, "odometry degraded (%d edge, %d plane matches, constraint %.1f)",
                           out->frame.corner_matches, out->frame.plane_matches, out->frame.constraint);
   }

@@ -15,6 +15,7 @@
 #include "aloam_nodelet/ros/pointcloud2_reader.h"
 #include "aloam_nodelet/ros/stage_messages.h"
 #include "param_utils.h"
+#include "stage_monitor.h"
 
 namespace aloam_nodelet
 {
@@ -29,6 +30,7 @@ class ScanRegistrationNodelet : public nodelet::Nodelet
 private:
   void onInit() override;
   void pointsCb(const sensor_msgs::PointCloud2::ConstPtr& msg);
+  bool process(const sensor_msgs::PointCloud2::ConstPtr& msg);  // false: sweep skipped
   void reconfigureCb(ScanRegistrationConfig& config, std::uint32_t level);
   void publishCloud(const ros::Publisher& pub, const aloam::Cloud& cloud, const std_msgs::Header& header) const;
   aloam::SensorModel sensorModel(const std::string& preset, int beams) const;
@@ -38,6 +40,9 @@ private:
   aloam::ros_io::ReaderOptions reader_options_;
   aloam::Cloud input_;  // reused between sweeps
   double min_elevation_deg_ = -15.0, max_elevation_deg_ = 15.0;  // for a beam count instead of a preset
+  aloam::RegistrationStats last_stats_;
+  std::size_t last_features_[4] = { 0, 0, 0, 0 };  // sharp, less sharp, flat, less flat
+  StageMonitor monitor_;
 
   std::unique_ptr<dynamic_reconfigure::Server<ScanRegistrationConfig>> reconfigure_server_;
 
@@ -90,6 +95,17 @@ void ScanRegistrationNodelet::onInit()
   flat_pub_ = nh.advertise<sensor_msgs::PointCloud2>("laser_cloud_flat", 2);
   less_flat_pub_ = nh.advertise<sensor_msgs::PointCloud2>("laser_cloud_less_flat", 2);
   full_pub_ = nh.advertise<sensor_msgs::PointCloud2>("velodyne_cloud_2", 2);
+  monitor_.init(nh, pnh, name, [this](diagnostic_updater::DiagnosticStatusWrapper& s) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    s.add("points in", last_stats_.points_in);
+    s.add("points used", last_stats_.points_used);
+    s.add("points on no ring", last_stats_.unassigned_ring);
+    s.add("points NaN/Inf", last_stats_.invalid);
+    s.add("points out of range", last_stats_.out_of_range);
+    s.add("rings", last_stats_.rings);
+    s.addf("features (sharp, less sharp, flat, less flat)", "%zu, %zu, %zu, %zu", last_features_[0],
+           last_features_[1], last_features_[2], last_features_[3]);
+  });
   // Queue of one: always the newest sweep.
   points_sub_ = nh.subscribe("velodyne_points", 1, &ScanRegistrationNodelet::pointsCb, this);
 }
@@ -131,6 +147,15 @@ void ScanRegistrationNodelet::publishCloud(const ros::Publisher& pub, const aloa
 
 void ScanRegistrationNodelet::pointsCb(const sensor_msgs::PointCloud2::ConstPtr& msg)
 {
+  const auto start = std::chrono::steady_clock::now();
+  if (process(msg))
+  {
+    monitor_.frameDone(msSince(start));
+  }
+}
+
+bool ScanRegistrationNodelet::process(const sensor_msgs::PointCloud2::ConstPtr& msg)
+{
   std::lock_guard<std::mutex> lock(mutex_);
   const aloam::ros_io::ReadReport report = aloam::ros_io::readPointCloud2(*msg, reader_options_, input_);
   for (const std::string& warning : report.warnings)
@@ -140,7 +165,7 @@ void ScanRegistrationNodelet::pointsCb(const sensor_msgs::PointCloud2::ConstPtr&
   if (!report.ok)
   {
     NODELET_WARN_STREAM_THROTTLE(kThrottleSeconds, "velodyne_points: sweep skipped: " << report.error);
-    return;
+    return false;
   }
 
   auto features = std::make_shared<aloam::FeatureSet>();
@@ -148,8 +173,14 @@ void ScanRegistrationNodelet::pointsCb(const sensor_msgs::PointCloud2::ConstPtr&
   {
     NODELET_WARN_THROTTLE(kThrottleSeconds, "velodyne_points: sweep skipped: %zu of %zu points usable",
                           features->stats.points_used, features->stats.points_in);
-    return;
+    last_stats_ = features->stats;
+    return false;
   }
+  last_stats_ = features->stats;
+  last_features_[0] = features->sharp.size();
+  last_features_[1] = features->less_sharp.size();
+  last_features_[2] = features->flat.size();
+  last_features_[3] = features->less_flat.size();
   if (features->stats.unassigned_ring > 0)
   {
     NODELET_DEBUG("%zu points fit no beam of the sensor model", features->stats.unassigned_ring);
@@ -165,6 +196,7 @@ void ScanRegistrationNodelet::pointsCb(const sensor_msgs::PointCloud2::ConstPtr&
   publishCloud(flat_pub_, features->flat, msg->header);
   publishCloud(less_flat_pub_, features->less_flat, msg->header);
   publishCloud(full_pub_, features->full, msg->header);
+  return true;
 }
 
 }  // namespace aloam_nodelet

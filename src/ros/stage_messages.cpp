@@ -81,6 +81,7 @@ aloam_nodelet::OdometryFrame toWire(const StampedOdometryFrame& in)
   aloam_nodelet::OdometryFrame out;
   out.header = in.header;
   out.child_frame_id = in.child_frame_id;
+  out.sensor_frame_id = in.sensor_frame_id;
   const OdometryFrame& f = in.frame;
   out.pose = toPoseMsg(f.pose);
   out.motion = toPoseMsg(f.motion);
@@ -99,6 +100,7 @@ void fromWire(const aloam_nodelet::OdometryFrame& in, StampedOdometryFrame& out)
 {
   out.header = in.header;
   out.child_frame_id = in.child_frame_id;
+  out.sensor_frame_id = in.sensor_frame_id;
   OdometryFrame& f = out.frame;
   f.stamp = in.header.stamp.toSec();
   f.pose = fromPoseMsg(in.pose);

@@ -37,6 +37,7 @@ struct StampedOdometryFrame
 {
   std_msgs::Header header;     ///< the sweep's stamp; frame_id is the odometry world frame
   std::string child_frame_id;  ///< the odometry body frame
+  std::string sensor_frame_id;  ///< frame of the input point clouds
   OdometryFrame frame;
 
   using Ptr = boost::shared_ptr<StampedOdometryFrame>;
