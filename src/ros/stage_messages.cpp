@@ -1,5 +1,7 @@
 #include "aloam_nodelet/ros/stage_messages.h"
 
+#include <atomic>
+
 #include "aloam_nodelet/ros/conversions.h"
 #include "aloam_nodelet/ros/pointcloud2_reader.h"
 
@@ -9,6 +11,9 @@ namespace ros_io
 {
 namespace
 {
+// Statistics only: counts serializations so that tests and diagnostics can see whether any happened.
+std::atomic<std::size_t> wire_conversions{ 0 };
+
 // Reads a cloud written by toPointCloud2 (fields x y z intensity time ring), keeping its times as they
 // were (the reader makes them relative to the earliest point).
 void readCloud(const sensor_msgs::PointCloud2& msg, Cloud& out)
@@ -42,8 +47,14 @@ void writeCloud(const std::shared_ptr<const Cloud>& cloud, const std_msgs::Heade
 }
 }  // namespace
 
+std::size_t wireConversions()
+{
+  return wire_conversions.load();
+}
+
 aloam_nodelet::FeatureClouds toWire(const StampedFeatureSet& in)
 {
+  ++wire_conversions;
   aloam_nodelet::FeatureClouds out;
   out.header = in.header;
   if (!in.features)
@@ -78,6 +89,7 @@ void fromWire(const aloam_nodelet::FeatureClouds& in, StampedFeatureSet& out)
 
 aloam_nodelet::OdometryFrame toWire(const StampedOdometryFrame& in)
 {
+  ++wire_conversions;
   aloam_nodelet::OdometryFrame out;
   out.header = in.header;
   out.child_frame_id = in.child_frame_id;

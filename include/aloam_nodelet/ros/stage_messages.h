@@ -44,6 +44,10 @@ struct StampedOdometryFrame
   using ConstPtr = boost::shared_ptr<const StampedOdometryFrame>;
 };
 
+/// How many stage messages this process has converted to their wire form (i.e. serialized) so far: 0 while
+/// every subscriber lives in the same nodelet manager.
+std::size_t wireConversions();
+
 /// Conversions to and from the wire messages (used only when a message is serialized).
 aloam_nodelet::FeatureClouds toWire(const StampedFeatureSet& in);
 void fromWire(const aloam_nodelet::FeatureClouds& in, StampedFeatureSet& out);
