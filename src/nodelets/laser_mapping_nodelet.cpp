@@ -32,6 +32,7 @@
 #include "aloam_nodelet/ros/conversions.h"
 #include "aloam_nodelet/ros/stage_messages.h"
 #include "param_utils.h"
+#include "publish_utils.h"
 #include "stage_monitor.h"
 
 namespace aloam_nodelet
@@ -333,16 +334,7 @@ void LaserMappingNodelet::publishOutputs(const aloam::ros_io::StampedOdometryFra
   geometry_msgs::PoseStamped pose;
   pose.header = header;
   pose.pose = odom.pose.pose;
-  path_.poses.push_back(pose);
-  if (path_.poses.size() > path_max_poses_)
-  {
-    path_.poses.erase(path_.poses.begin(), path_.poses.begin() + (path_.poses.size() - path_max_poses_));
-  }
-  if (path_pub_.getNumSubscribers() > 0)
-  {
-    path_.header.stamp = header.stamp;
-    path_pub_.publish(path_);
-  }
+  appendAndPublish(path_, pose, path_max_poses_, path_pub_);
 
   if (registered_pub_.getNumSubscribers() > 0 && msg.frame.full)
   {
@@ -353,9 +345,7 @@ void LaserMappingNodelet::publishOutputs(const aloam::ros_io::StampedOdometryFra
       world.points.push_back(aloam::transformPoint(result.pose, p));
     }
     aloam::setUnorganized(world);
-    auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
-    aloam::ros_io::toPointCloud2(world, header, *cloud);
-    registered_pub_.publish(cloud);
+    publishCloudIfSubscribed(registered_pub_, world, header);
   }
   if (surround_pub_.getNumSubscribers() > 0 && frames_mapped_ % static_cast<std::size_t>(surround_every_) == 0)
   {
@@ -364,9 +354,7 @@ void LaserMappingNodelet::publishOutputs(const aloam::ros_io::StampedOdometryFra
     mapping_->map().gather(mapping_->map().indexOf(result.pose.t), config.submap_half_xy, config.submap_half_z,
                            corners, surfs);
     corners += surfs;
-    auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
-    aloam::ros_io::toPointCloud2(corners, header, *cloud);
-    surround_pub_.publish(cloud);
+    publishCloudIfSubscribed(surround_pub_, corners, header);
   }
   if (map_pub_.getNumSubscribers() > 0 && map_publish_period_ > 0.0 &&
       (last_map_publish_.isZero() || (header.stamp - last_map_publish_).toSec() >= map_publish_period_ ||
@@ -375,9 +363,7 @@ void LaserMappingNodelet::publishOutputs(const aloam::ros_io::StampedOdometryFra
     last_map_publish_ = header.stamp;
     aloam::Cloud all;
     mapping_->map().collectAll(all);
-    auto cloud = boost::make_shared<sensor_msgs::PointCloud2>();
-    aloam::ros_io::toPointCloud2(all, header, *cloud);
-    map_pub_.publish(cloud);
+    publishCloudIfSubscribed(map_pub_, all, header);
   }
 }
 

@@ -17,6 +17,7 @@
 #include "aloam_nodelet/ros/conversions.h"
 #include "aloam_nodelet/ros/stage_messages.h"
 #include "param_utils.h"
+#include "publish_utils.h"
 #include "stage_monitor.h"
 
 namespace aloam_nodelet
@@ -36,8 +37,6 @@ private:
   void process(const aloam::ros_io::StampedFeatureSet::ConstPtr& msg);
   bool resetCb(std_srvs::Trigger::Request& request, std_srvs::Trigger::Response& response);
   void reconfigureCb(const LaserOdometryConfig& config);
-  void publishCloud(const ros::Publisher& pub, const std::shared_ptr<const aloam::Cloud>& cloud,
-                    const std_msgs::Header& header) const;
   void resetLocked();
 
   std::mutex mutex_;  // guards the core, the path and the time bookkeeping
@@ -124,18 +123,6 @@ bool LaserOdometryNodelet::resetCb(std_srvs::Trigger::Request&, std_srvs::Trigge
   return true;
 }
 
-void LaserOdometryNodelet::publishCloud(const ros::Publisher& pub, const std::shared_ptr<const aloam::Cloud>& cloud,
-                                        const std_msgs::Header& header) const
-{
-  if (!cloud || pub.getNumSubscribers() == 0)
-  {
-    return;
-  }
-  auto msg = boost::make_shared<sensor_msgs::PointCloud2>();
-  aloam::ros_io::toPointCloud2(*cloud, header, *msg);
-  pub.publish(msg);
-}
-
 void LaserOdometryNodelet::featuresCb(const aloam::ros_io::StampedFeatureSet::ConstPtr& msg)
 {
   if (!msg->features)
@@ -181,20 +168,10 @@ void LaserOdometryNodelet::process(const aloam::ros_io::StampedFeatureSet::Const
   geometry_msgs::PoseStamped pose;
   pose.header = out->header;
   pose.pose = odom.pose.pose;
-  path_.poses.push_back(pose);
-  if (path_.poses.size() > path_max_poses_)
-  {
-    path_.poses.erase(path_.poses.begin(), path_.poses.begin() + (path_.poses.size() - path_max_poses_));
-  }
-  if (path_pub_.getNumSubscribers() > 0)
-  {
-    path_.header.stamp = stamp;
-    path_pub_.publish(path_);
-  }
-  std_msgs::Header sensor_header = msg->header;
-  publishCloud(corner_pub_, out->frame.corners, sensor_header);
-  publishCloud(surf_pub_, out->frame.surfs, sensor_header);
-  publishCloud(full_pub_, out->frame.full, sensor_header);
+  appendAndPublish(path_, pose, path_max_poses_, path_pub_);
+  publishCloudIfSubscribed(corner_pub_, *out->frame.corners, msg->header);
+  publishCloudIfSubscribed(surf_pub_, *out->frame.surfs, msg->header);
+  publishCloudIfSubscribed(full_pub_, *out->frame.full, msg->header);
 }
 
 }  // namespace aloam_nodelet

@@ -15,6 +15,7 @@
 #include "aloam_nodelet/ros/pointcloud2_reader.h"
 #include "aloam_nodelet/ros/stage_messages.h"
 #include "param_utils.h"
+#include "publish_utils.h"
 #include "stage_monitor.h"
 
 namespace aloam_nodelet
@@ -32,7 +33,6 @@ private:
   void pointsCb(const sensor_msgs::PointCloud2::ConstPtr& msg);
   bool process(const sensor_msgs::PointCloud2::ConstPtr& msg);  // false: sweep skipped
   void reconfigureCb(ScanRegistrationConfig& config, std::uint32_t level);
-  void publishCloud(const ros::Publisher& pub, const aloam::Cloud& cloud, const std_msgs::Header& header) const;
   aloam::SensorModel sensorModel(const std::string& preset, int beams) const;
 
   std::mutex mutex_;  // guards the core and its configuration
@@ -133,18 +133,6 @@ void ScanRegistrationNodelet::reconfigureCb(ScanRegistrationConfig& c, std::uint
   registration_->setConfig(config);  // applies from the next sweep
 }
 
-void ScanRegistrationNodelet::publishCloud(const ros::Publisher& pub, const aloam::Cloud& cloud,
-                                           const std_msgs::Header& header) const
-{
-  if (pub.getNumSubscribers() == 0)
-  {
-    return;
-  }
-  auto msg = boost::make_shared<sensor_msgs::PointCloud2>();
-  aloam::ros_io::toPointCloud2(cloud, header, *msg);
-  pub.publish(msg);
-}
-
 void ScanRegistrationNodelet::pointsCb(const sensor_msgs::PointCloud2::ConstPtr& msg)
 {
   const auto start = std::chrono::steady_clock::now();
@@ -191,11 +179,11 @@ bool ScanRegistrationNodelet::process(const sensor_msgs::PointCloud2::ConstPtr& 
   out->features = features;
   features_pub_.publish(out);  // never modified after this
 
-  publishCloud(sharp_pub_, features->sharp, msg->header);
-  publishCloud(less_sharp_pub_, features->less_sharp, msg->header);
-  publishCloud(flat_pub_, features->flat, msg->header);
-  publishCloud(less_flat_pub_, features->less_flat, msg->header);
-  publishCloud(full_pub_, features->full, msg->header);
+  publishCloudIfSubscribed(sharp_pub_, features->sharp, msg->header);
+  publishCloudIfSubscribed(less_sharp_pub_, features->less_sharp, msg->header);
+  publishCloudIfSubscribed(flat_pub_, features->flat, msg->header);
+  publishCloudIfSubscribed(less_flat_pub_, features->less_flat, msg->header);
+  publishCloudIfSubscribed(full_pub_, features->full, msg->header);
   return true;
 }
 
