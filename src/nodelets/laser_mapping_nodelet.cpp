@@ -187,9 +187,25 @@ void LaserMappingNodelet::onInit()
 
 void LaserMappingNodelet::frameCb(const aloam::ros_io::StampedOdometryFrame::ConstPtr& msg)
 {
+  bool reset_pending = false;
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    if (!last_stamp_.isZero() && msg->header.stamp + ros::Duration(kTimeJumpBackSeconds) < last_stamp_)
+    {
+      NODELET_WARN("time jumped back %.3f s (looping bag?): map reset", (last_stamp_ - msg->header.stamp).toSec());
+      reset_requested_ = true;
+    }
+    last_stamp_ = msg->header.stamp;
+    reset_pending = reset_requested_;
+  }
+
   aloam::Pose corrected;
   {
     std::lock_guard<std::mutex> lock(correction_mutex_);
+    if (reset_pending)
+    {
+      correction_ = aloam::Pose();  // the old map's correction means nothing to the new one
+    }
     corrected = correction_ * msg->frame.pose;
   }
   std_msgs::Header header = msg->header;
@@ -206,12 +222,6 @@ void LaserMappingNodelet::frameCb(const aloam::ros_io::StampedOdometryFrame::Con
   }
 
   std::lock_guard<std::mutex> lock(queue_mutex_);
-  if (!last_stamp_.isZero() && msg->header.stamp + ros::Duration(kTimeJumpBackSeconds) < last_stamp_)
-  {
-    NODELET_WARN("time jumped back %.3f s (looping bag?): map reset", (last_stamp_ - msg->header.stamp).toSec());
-    reset_requested_ = true;
-  }
-  last_stamp_ = msg->header.stamp;
   if (pending_)
   {
     ++skipped_;
@@ -398,15 +408,21 @@ bool LaserMappingNodelet::saveMapCb(SaveMap::Request& request, SaveMap::Response
     response.success = false;
     response.message = "the map is empty";
   }
-  else if (pcl::io::savePCDFileBinary(request.path, all) != 0)
-  {
-    response.success = false;
-    response.message = "cannot write " + request.path;
-  }
   else
   {
-    response.success = true;
-    response.message = "wrote " + std::to_string(all.size()) + " points to " + request.path;
+    // PCL reports some write errors by return value and others by exception.
+    bool written = false;
+    try
+    {
+      written = pcl::io::savePCDFileBinary(request.path, all) == 0;
+    }
+    catch (const std::exception& e)
+    {
+      NODELET_WARN("save_map: %s", e.what());
+    }
+    response.success = written;
+    response.message = written ? "wrote " + std::to_string(all.size()) + " points to " + request.path
+                               : "cannot write " + request.path;
   }
   return true;
 }
