@@ -31,18 +31,13 @@
 #include "aloam_nodelet/eval/trajectory_io.h"
 #include "aloam_nodelet/ros/conversions.h"
 #include "aloam_nodelet/ros/stage_messages.h"
+#include "nodelet_common.h"
 #include "param_utils.h"
 #include "publish_utils.h"
 #include "stage_monitor.h"
 
 namespace aloam_nodelet
 {
-namespace
-{
-constexpr double kThrottleSeconds = 5.0;
-constexpr double kTimeJumpBackSeconds = 1.0;
-}  // namespace
-
 class LaserMappingNodelet : public nodelet::Nodelet
 {
 public:
@@ -78,7 +73,7 @@ private:
   aloam::ros_io::StampedOdometryFrame::ConstPtr pending_;
   bool reset_requested_ = false;
   std::size_t skipped_ = 0;
-  ros::Time last_stamp_;
+  TimeJumpDetector time_jump_;
   std::atomic<bool> stop_{ false };
   std::thread worker_;
 
@@ -190,12 +185,12 @@ void LaserMappingNodelet::frameCb(const aloam::ros_io::StampedOdometryFrame::Con
   bool reset_pending = false;
   {
     std::lock_guard<std::mutex> lock(queue_mutex_);
-    if (!last_stamp_.isZero() && msg->header.stamp + ros::Duration(kTimeJumpBackSeconds) < last_stamp_)
+    double jump = 0.0;
+    if (time_jump_.jumpedBack(msg->header.stamp, jump))
     {
-      NODELET_WARN("time jumped back %.3f s (looping bag?): map reset", (last_stamp_ - msg->header.stamp).toSec());
+      NODELET_WARN("time jumped back %.3f s (looping bag?): map reset", jump);
       reset_requested_ = true;
     }
-    last_stamp_ = msg->header.stamp;
     reset_pending = reset_requested_;
   }
 

@@ -16,19 +16,13 @@
 #include "aloam_nodelet/core/laser_odometry.h"
 #include "aloam_nodelet/ros/conversions.h"
 #include "aloam_nodelet/ros/stage_messages.h"
+#include "nodelet_common.h"
 #include "param_utils.h"
 #include "publish_utils.h"
 #include "stage_monitor.h"
 
 namespace aloam_nodelet
 {
-namespace
-{
-constexpr double kThrottleSeconds = 5.0;
-// A stamp this far before the previous one means the input started over (a looping bag).
-constexpr double kTimeJumpBackSeconds = 1.0;
-}  // namespace
-
 class LaserOdometryNodelet : public nodelet::Nodelet
 {
 private:
@@ -44,7 +38,7 @@ private:
   std::string world_frame_, child_frame_;
   std::size_t path_max_poses_ = 10000;
   nav_msgs::Path path_;
-  ros::Time last_stamp_;
+  TimeJumpDetector time_jump_;
   aloam::OdometryFrame last_frame_;  // for diagnostics (clouds not kept)
   std::size_t degraded_frames_ = 0;
   StageMonitor monitor_;
@@ -111,7 +105,7 @@ void LaserOdometryNodelet::resetLocked()
 {
   odometry_->reset();
   path_.poses.clear();
-  last_stamp_ = ros::Time();
+  time_jump_.reset();
 }
 
 bool LaserOdometryNodelet::resetCb(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response)
@@ -138,12 +132,13 @@ void LaserOdometryNodelet::process(const aloam::ros_io::StampedFeatureSet::Const
 {
   std::lock_guard<std::mutex> lock(mutex_);
   const ros::Time stamp = msg->header.stamp;
-  if (!last_stamp_.isZero() && stamp + ros::Duration(kTimeJumpBackSeconds) < last_stamp_)
+  double jump = 0.0;
+  if (time_jump_.jumpedBack(stamp, jump))
   {
-    NODELET_WARN("time jumped back %.3f s (looping bag?): odometry reset", (last_stamp_ - stamp).toSec());
+    NODELET_WARN("time jumped back %.3f s (looping bag?): odometry reset", jump);
     resetLocked();
+    time_jump_.jumpedBack(stamp, jump);  // this sweep starts the new run
   }
-  last_stamp_ = stamp;
 
   auto out = boost::make_shared<aloam::ros_io::StampedOdometryFrame>();
   out->frame = odometry_->process(msg->features);

@@ -14,18 +14,13 @@
 #include "aloam_nodelet/ros/conversions.h"
 #include "aloam_nodelet/ros/pointcloud2_reader.h"
 #include "aloam_nodelet/ros/stage_messages.h"
+#include "nodelet_common.h"
 #include "param_utils.h"
 #include "publish_utils.h"
 #include "stage_monitor.h"
 
 namespace aloam_nodelet
 {
-namespace
-{
-constexpr double kThrottleSeconds = 5.0;
-constexpr int kMaxBeams = 256;
-}  // namespace
-
 class ScanRegistrationNodelet : public nodelet::Nodelet
 {
 private:

@@ -123,6 +123,14 @@ def wait_connected(endpoint, timeout=15.0):
     return endpoint.get_num_connections() > 0
 
 
+def connected_collectors(test, topics):
+    """A StampCollector for each {topic: type}, asserting (on `test`) that each gets a connection."""
+    collectors = {t: StampCollector(t, ty) for t, ty in topics.items()}
+    for t, c in collectors.items():
+        test.assertTrue(wait_connected(c.sub), "no connection on %s" % t)
+    return collectors
+
+
 def wait_for_service(name, timeout=30.0):
     try:
         rospy.wait_for_service(name, timeout)

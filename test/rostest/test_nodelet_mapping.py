@@ -118,9 +118,7 @@ class TestLaserMappingNodelet(u.ScratchTestCase):
     def test_1_mapping_answers_every_frame(self):
         extras = {"/aft_mapped_path": Path, "/velodyne_cloud_registered": PointCloud2,
                   "/laser_cloud_surround": PointCloud2, "/laser_cloud_map": PointCloud2}
-        extra = {t: u.StampCollector(t, ty) for t, ty in extras.items()}
-        for t, c in extra.items():
-            self.assertTrue(u.wait_connected(c.sub), "no connection on %s" % t)
+        extra = u.connected_collectors(self, extras)
         answers = self.feed(range(FRAMES), self.stamps, self.odom)
         missing = [i for i, a in enumerate(answers) if a is None]
         self.assertEqual(missing, [], "frames without aft_mapped_to_init")

@@ -80,9 +80,7 @@ class TestLaserOdometryNodelet(u.ScratchTestCase):
     def test_1_odometry_of_the_drive(self):
         extras = {"/laser_odom_path": Path, "/laser_cloud_corner_last": PointCloud2,
                   "/laser_cloud_surf_last": PointCloud2, "/velodyne_cloud_3": PointCloud2}
-        extra = {t: u.StampCollector(t, ty) for t, ty in extras.items()}
-        for t, c in extra.items():
-            self.assertTrue(u.wait_connected(c.sub), "no connection on %s" % t)
+        extra = u.connected_collectors(self, extras)
         sent = self.send_at_rate(self.messages)
         stamps = [s for _, s in sent]
         got = [s for s in self.odom.stamps() if s in set(stamps)]
