@@ -12,7 +12,7 @@ export ROS_LOG_DIR="${ROS_LOG_DIR:-$ROS_HOME/log}"
 
 # Debian 12 packages the build, the tests and the tools need.
 ALOAM_DEBIAN_PACKAGES=(
-  build-essential cmake liblz4-dev catkin python3-catkin-pkg python3-rospkg
+  build-essential cmake clang libclang-rt-14-dev liblz4-dev catkin python3-catkin-pkg python3-rospkg
   ros-base-dev libroscpp-dev librosbag-dev libnodeletlib-dev libnodeletlib-tools libnodelet-dev
   pluginlib-dev libtf2-ros-dev libtf2-eigen-dev libpcl-ros-dev libpcl-dev libeigen3-dev libceres-dev
   libsensor-msgs-dev libnav-msgs-dev libgeometry-msgs-dev libstd-srvs-dev

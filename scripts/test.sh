@@ -25,17 +25,18 @@ aloam_log "running the end-to-end tool checks"
 tools_passed=0 tools_failed=0 tools_skipped=0
 bin="$ALOAM_WS/devel/lib/aloam_nodelet"
 checks_out="$ALOAM_WS/test_output"
-run_check() {  # run_check SCRIPT ARGS...: exit 0 passed, 77 skipped, anything else failed
+run_check() {  # run_check SCRIPT ARGS... (SCRIPT relative to test/): exit 0 passed, 77 skipped, else failed
   local status=0
-  bash "$ALOAM_ROOT/test/tools/$1" "${@:2}" || status=$?
+  bash "$ALOAM_ROOT/test/$1" "${@:2}" || status=$?
   case $status in
     0) tools_passed=$((tools_passed + 1)) ;;
     77) tools_skipped=$((tools_skipped + 1)) ;;
     *) tools_failed=$((tools_failed + 1)); aloam_log "FAILED: $1" ;;
   esac
 }
-run_check check_offline_bag.sh "$bin" "$checks_out/offline_bag"
-run_check check_offline_kitti.sh "$bin" "$ALOAM_DATA/kitti00_101" "$checks_out/offline_kitti"
+run_check tools/check_offline_bag.sh "$bin" "$checks_out/offline_bag"
+run_check tools/check_offline_kitti.sh "$bin" "$ALOAM_DATA/kitti00_101" "$checks_out/offline_kitti"
+run_check fuzz/run_fuzz.sh "$checks_out/fuzz" 45
 
 passed=$((total - errors - failures - skipped + tools_passed))
 failed=$((errors + failures + tools_failed))
