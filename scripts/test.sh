@@ -37,6 +37,7 @@ run_check() {  # run_check SCRIPT ARGS... (SCRIPT relative to test/): exit 0 pas
 run_check tools/check_offline_bag.sh "$bin" "$checks_out/offline_bag"
 run_check tools/check_offline_kitti.sh "$bin" "$ALOAM_DATA/kitti00_101" "$checks_out/offline_kitti"
 run_check fuzz/run_fuzz.sh "$checks_out/fuzz" 45
+run_check sanitize/run_sanitized_core_tests.sh "$checks_out/sanitize"
 
 passed=$((total - errors - failures - skipped + tools_passed))
 failed=$((errors + failures + tools_failed))

@@ -9,12 +9,20 @@ namespace aloam
 namespace
 {
 constexpr int kTangentSize = 6;  // rotation (3) then translation (3)
+
+ceres::Problem::Options problemOptions()
+{
+  ceres::Problem::Options options;
+  options.loss_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  return options;
+}
 }  // namespace
 
 PoseProblem::PoseProblem(const Pose& initial, double huber_delta)
   : q_{ initial.q.x(), initial.q.y(), initial.q.z(), initial.q.w() }
   , t_{ initial.t.x(), initial.t.y(), initial.t.z() }
-  , loss_(new ceres::HuberLoss(huber_delta))
+  , loss_(std::make_unique<ceres::HuberLoss>(huber_delta))
+  , problem_(problemOptions())
 {
   addQuaternionBlock(problem_, q_);
   problem_.AddParameterBlock(t_, 3);

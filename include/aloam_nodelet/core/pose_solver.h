@@ -1,6 +1,8 @@
 // The pose problem both matching stages solve: a quaternion and a translation under point residuals.
 #pragma once
 
+#include <memory>
+
 #include <ceres/ceres.h>
 
 #include "aloam_nodelet/core/pose.h"
@@ -14,7 +16,7 @@ class PoseProblem
 public:
   PoseProblem(const Pose& initial, double huber_delta);
 
-  void addResidual(ceres::CostFunction* cost) { problem_.AddResidualBlock(cost, loss_, q_, t_); }
+  void addResidual(ceres::CostFunction* cost) { problem_.AddResidualBlock(cost, loss_.get(), q_, t_); }
   int residualCount() const { return problem_.NumResidualBlocks(); }
 
   /// Runs at most `max_iterations` Levenberg-Marquardt iterations.
@@ -31,8 +33,10 @@ public:
 private:
   double q_[4];
   double t_[3];
+  // Owned here, not by the problem (which would own it only once a residual used it): declared first, so
+  // it outlives the problem.
+  std::unique_ptr<ceres::LossFunction> loss_;
   ceres::Problem problem_;
-  ceres::LossFunction* loss_;  // owned by problem_
 };
 
 }  // namespace aloam
