@@ -2,9 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
-#include <random>
 #include <stdexcept>
 #include <utility>
+
+#include "deterministic_rng.h"
 
 namespace aloam
 {
@@ -55,30 +56,7 @@ constexpr double kPoleCurbOffset = 0.5;        // poles stand this far behind th
 constexpr double kTreeCurbOffset = 1.8;        // trees stand this far behind the curb
 constexpr double kCrownCenterAboveTrunk = 0.7; // crown center above the trunk top, fraction of radius
 
-// Deterministic random numbers for scene generation. std::mt19937's output sequence is fixed by
-// the standard and the conversion to doubles is explicit, so scenes are identical on all platforms.
-class Rng
-{
-public:
-  explicit Rng(unsigned seed) : engine_(seed) {}
-
-  // Uniform in [0, 1) with 53 random bits.
-  double uniform01()
-  {
-    constexpr double kTwoTo26 = 67108864.0;
-    constexpr double kTwoTo53 = 9007199254740992.0;
-    const double high = static_cast<double>(engine_() >> 5);
-    const double low = static_cast<double>(engine_() >> 6);
-    return (high * kTwoTo26 + low) / kTwoTo53;
-  }
-  double uniform(double lo, double hi) { return lo + (hi - lo) * uniform01(); }
-  bool bernoulli(double p) { return uniform01() < p; }
-
-private:
-  std::mt19937 engine_;
-};
-
-double jitteredReflectivity(SurfaceClass surface_class, Rng& rng)
+double jitteredReflectivity(SurfaceClass surface_class, DeterministicRng& rng)
 {
   const double r = defaultReflectivity(surface_class) + rng.uniform(-kReflectivityJitter, kReflectivityJitter);
   return std::clamp(r, kMinReflectivity, 1.0);
@@ -772,7 +750,7 @@ Scene Scene::urbanStreet(unsigned seed, double length_m)
 
 Scene Scene::urbanStreet(unsigned seed, const UrbanStreetOptions& o)
 {
-  Rng rng(seed);
+  DeterministicRng rng(seed);
   std::vector<Primitive> primitives;
   const auto add = [&](Shape shape, SurfaceClass surface_class) {
     const double reflectivity = jitteredReflectivity(surface_class, rng);

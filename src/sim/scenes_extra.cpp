@@ -2,10 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <random>
 #include <stdexcept>
 #include <utility>
 #include <vector>
+
+#include "deterministic_rng.h"
 
 namespace aloam
 {
@@ -29,26 +30,6 @@ constexpr double kFieldFirstObjectX = 20.0;
 constexpr double kFieldMinLateral = 8.0;
 constexpr double kFieldLateralSpan = 20.0;
 constexpr int kFieldObjectCount = 5;
-
-/// Portable uniform random numbers (the distributions of <random> differ between libraries).
-class UniformSource
-{
-public:
-  explicit UniformSource(unsigned seed) : engine_(seed) {}
-
-  double uniform01()
-  {
-    constexpr double kTwoTo26 = 67108864.0;
-    constexpr double kTwoTo53 = 9007199254740992.0;
-    const double high = static_cast<double>(engine_() >> 5);
-    const double low = static_cast<double>(engine_() >> 6);
-    return (high * kTwoTo26 + low) / kTwoTo53;
-  }
-  double uniform(double lo, double hi) { return lo + (hi - lo) * uniform01(); }
-
-private:
-  std::mt19937 engine_;
-};
 
 /// Planar patches following `profile` over [x_min, x_max] x [y_min, y_max], raised by `base_z`.
 std::vector<PlanePatch> profilePatches(const GroundProfile& profile, double base_z, double x_min, double x_max,
@@ -152,7 +133,7 @@ Scene corridorScene(unsigned seed, const CorridorOptions& o)
   {
     throw std::invalid_argument("corridorScene: invalid dimensions");
   }
-  UniformSource rng(seed);
+  DeterministicRng rng(seed);
   Scene scene;
   const double half_width = 0.5 * o.width_m;
   const double outer = half_width + o.wall_thickness_m + kNicheDepth;
@@ -217,7 +198,7 @@ Scene corridorScene(unsigned seed, const CorridorOptions& o)
 
 Scene openFieldScene(unsigned seed, double length_m)
 {
-  UniformSource rng(seed);
+  DeterministicRng rng(seed);
   Scene scene;
   scene.add(PlanePatch::horizontal(0.0, -kFieldGroundMargin, std::max(length_m, 0.0) + kFieldGroundMargin,
                                    -kFieldGroundMargin, kFieldGroundMargin),
