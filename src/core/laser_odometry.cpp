@@ -2,37 +2,48 @@
 
 #include <algorithm>
 #include <cmath>
+#include <tuple>
 
 
-#include "aloam_nodelet/core/lidar_factors.h"
+#include "aloam_nodelet/core/parallel.h"
 #include "aloam_nodelet/core/pose_solver.h"
 
 namespace aloam
 {
 namespace
 {
+// Below this many points per thread, starting a thread costs more than it saves.
+constexpr int kMinPointsPerThread = 256;
+
 Eigen::Vector3d vec(const Point& p)
 {
   return Eigen::Vector3d(p.x, p.y, p.z);
 }
 
-double squaredDistance(const Point& a, const Point& b)
+// Rings [first, last] clipped to the rings a cloud has.
+std::pair<int, int> clippedRings(const std::vector<KdTree>& ring_trees, int first, int last)
 {
-  const double dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
-  return dx * dx + dy * dy + dz * dz;
+  return { std::max(first, 0), std::min(last, static_cast<int>(ring_trees.size()) - 1) };
 }
 
-// Rings [first, last] clipped to the rings the cloud has, as an index range.
-std::pair<int, int> ringSpan(const std::vector<int>& begins, int first, int last)
+// The point nearest to `query` on rings [first, last], other than `skip`, closer than `max_sq_distance`
+// (lowered to the distance of the point found); -1 if none.
+int nearestOnRings(const std::vector<KdTree>& ring_trees, const Point& query, int first, int last,
+                   float& max_sq_distance, int skip = -1)
 {
-  const int rings = static_cast<int>(begins.size()) - 1;
-  first = std::max(first, 0);
-  last = std::min(last, rings - 1);
-  if (first > last)
+  const auto [lo, hi] = clippedRings(ring_trees, first, last);
+  int best = -1;
+  for (int r = lo; r <= hi; ++r)
   {
-    return { 0, 0 };
+    float d = 0.0f;
+    const int j = ring_trees[r].nearest(query, max_sq_distance, &d, skip);
+    if (j >= 0)
+    {
+      max_sq_distance = d;
+      best = j;
+    }
   }
-  return { begins[first], begins[last + 1] };
+  return best;
 }
 }  // namespace
 
@@ -66,135 +77,132 @@ void LaserOdometry::reset()
   motion_ = Pose();
   last_corners_.reset();
   last_surfs_.reset();
+  last_indexed_ = false;
   last_distorted_ = false;
 }
 
-void LaserOdometry::keepAsLast(std::shared_ptr<const Cloud> corners, std::shared_ptr<const Cloud> surfs)
+void LaserOdometry::indexLast()
 {
-  last_corners_ = std::move(corners);
-  last_surfs_ = std::move(surfs);
-  last_corner_ring_begin_ = ringBegins(*last_corners_);
-  last_surf_ring_begin_ = ringBegins(*last_surfs_);
-  // An empty cloud cannot be indexed; searches check sizes before using the trees.
-  if (!last_corners_->empty())
+  if (last_indexed_ || !last_corners_)
   {
-    corner_tree_.setInputCloud(last_corners_);
+    return;
   }
-  if (!last_surfs_->empty())
+  indexByRing(*last_corners_, corner_tree_, corner_ring_trees_);
+  indexByRing(*last_surfs_, surf_tree_, surf_ring_trees_);
+  last_indexed_ = true;
+}
+
+void LaserOdometry::indexByRing(const Cloud& cloud, KdTree& all, std::vector<KdTree>& rings)
+{
+  all.build(cloud);
+  const std::vector<int> begins = ringBegins(cloud);
+  rings.resize(begins.size() - 1);
+  for (std::size_t r = 0; r + 1 < begins.size(); ++r)
   {
-    surf_tree_.setInputCloud(last_surfs_);
+    rings[r].build(cloud, begins[r], begins[r + 1]);
   }
+}
+
+bool LaserOdometry::matchEdge(const Point& p, const Pose& motion, LineMatch& match) const
+{
+  const Cloud& last = *last_corners_;
+  const auto threshold = static_cast<float>(config_.distance_sq_threshold);
+  const int nearby = static_cast<int>(std::floor(config_.nearby_scan));
+  const Point sel = transformPoint(motion, p);
+  const int closest = corner_tree_.nearest(sel, threshold);
+  if (closest < 0)
+  {
+    return false;
+  }
+  const int ring = last.points[closest].ring;
+  // Second point of the line: the nearest one on a neighbouring ring (not the same ring).
+  float best = threshold;
+  const int above = nearestOnRings(corner_ring_trees_, sel, ring + 1, ring + nearby, best);
+  const int below = nearestOnRings(corner_ring_trees_, sel, ring - nearby, ring - 1, best);
+  const int second = below >= 0 ? below : above;
+  if (second < 0)
+  {
+    return false;
+  }
+  const Eigen::Vector3d a = vec(last.points[closest]);
+  const Eigen::Vector3d b = vec(last.points[second]);
+  const double length = (a - b).norm();
+  if (!(length > 1e-6))
+  {
+    return false;
+  }
+  match = LineMatch{ vec(p), a, (a - b) / length };
+  return true;
+}
+
+bool LaserOdometry::matchPlane(const Point& p, const Pose& motion, PlaneMatch& match) const
+{
+  const Cloud& last = *last_surfs_;
+  const auto threshold = static_cast<float>(config_.distance_sq_threshold);
+  const int nearby = static_cast<int>(std::floor(config_.nearby_scan));
+  const Point sel = transformPoint(motion, p);
+  const int closest = surf_tree_.nearest(sel, threshold);
+  if (closest < 0)
+  {
+    return false;
+  }
+  const int ring = last.points[closest].ring;
+  // Plane through the closest point, the nearest other point on the same or a lower ring and the
+  // nearest point on a higher ring.
+  float low_bound = threshold, high_bound = threshold;
+  const int low = nearestOnRings(surf_ring_trees_, sel, ring - nearby, ring, low_bound, closest);
+  const int high = nearestOnRings(surf_ring_trees_, sel, ring + 1, ring + nearby, high_bound);
+  if (low < 0 || high < 0)
+  {
+    return false;
+  }
+  const Eigen::Vector3d l = vec(last.points[closest]);
+  Eigen::Vector3d n = (vec(last.points[low]) - l).cross(vec(last.points[high]) - l);
+  const double norm = n.norm();
+  if (!(norm > 1e-9))
+  {
+    return false;
+  }
+  n /= norm;
+  match = PlaneMatch{ vec(p), n, -n.dot(l) };
+  return true;
 }
 
 LaserOdometry::Matches LaserOdometry::solve(const Cloud& sharp, const Cloud& flat, Pose& motion) const
 {
   Matches total;
-  const Cloud& last_c = *last_corners_;
-  const Cloud& last_s = *last_surfs_;
-  const int nearby = static_cast<int>(std::floor(config_.nearby_scan));
+  MatchSlots slots;
+  slots.resize(sharp.size(), flat.size());
+  const int n_sharp = static_cast<int>(sharp.size());
+  const int n_flat = static_cast<int>(flat.size());
 
-  std::vector<int> index(1);
-  std::vector<float> sq_dist(1);
   for (int outer = 0; outer < config_.outer_iterations; ++outer)
   {
+    // The searches are independent per point: split them over the threads.
+    parallelChunks(n_sharp + n_flat, config_.threads, kMinPointsPerThread, [&](int begin, int end, int) {
+      for (int i = begin; i < end; ++i)
+      {
+        if (i < n_sharp)
+        {
+          slots.line_found[i] = matchEdge(sharp.points[i], motion, slots.lines[i]);
+        }
+        else
+        {
+          const int j = i - n_sharp;
+          slots.plane_found[j] = matchPlane(flat.points[j], motion, slots.planes[j]);
+        }
+      }
+    });
+
     PoseProblem problem(motion, config_.huber_delta);
     Matches m;
-
-    for (const Point& p : sharp.points)
-    {
-      const Point sel = transformPoint(motion, p);
-      if (corner_tree_.nearestKSearch(sel, 1, index, sq_dist) < 1 || sq_dist[0] >= config_.distance_sq_threshold)
-      {
-        continue;
-      }
-      const int closest = index[0];
-      const int ring = last_c.points[closest].ring;
-      // Second point of the line: the nearest one on a neighbouring ring (not the same ring).
-      double best = config_.distance_sq_threshold;
-      int second = -1;
-      for (const auto& [lo, hi] : { ringSpan(last_corner_ring_begin_, ring + 1, ring + nearby),
-                                    ringSpan(last_corner_ring_begin_, ring - nearby, ring - 1) })
-      {
-        for (int j = lo; j < hi; ++j)
-        {
-          const double d = squaredDistance(last_c.points[j], sel);
-          if (d < best)
-          {
-            best = d;
-            second = j;
-          }
-        }
-      }
-      if (second < 0)
-      {
-        continue;
-      }
-      const Eigen::Vector3d a = vec(last_c.points[closest]);
-      const Eigen::Vector3d b = vec(last_c.points[second]);
-      const double length = (a - b).norm();
-      if (!(length > 1e-6))
-      {
-        continue;
-      }
-      problem.addResidual(PointToLineResidual::create(vec(p), a, (a - b) / length));
-      ++m.corners;
-    }
-
-    for (const Point& p : flat.points)
-    {
-      const Point sel = transformPoint(motion, p);
-      if (surf_tree_.nearestKSearch(sel, 1, index, sq_dist) < 1 || sq_dist[0] >= config_.distance_sq_threshold)
-      {
-        continue;
-      }
-      const int closest = index[0];
-      const int ring = last_s.points[closest].ring;
-      // Plane through the closest point, the nearest other point on the same or a lower ring and the
-      // nearest point on a higher ring.
-      double best_low = config_.distance_sq_threshold, best_high = config_.distance_sq_threshold;
-      int low = -1, high = -1;
-      const auto [lo, hi] = ringSpan(last_surf_ring_begin_, ring - nearby, ring);
-      for (int j = lo; j < hi; ++j)
-      {
-        const double d = squaredDistance(last_s.points[j], sel);
-        if (j != closest && d < best_low)
-        {
-          best_low = d;
-          low = j;
-        }
-      }
-      const auto [lo2, hi2] = ringSpan(last_surf_ring_begin_, ring + 1, ring + nearby);
-      for (int j = lo2; j < hi2; ++j)
-      {
-        const double d = squaredDistance(last_s.points[j], sel);
-        if (d < best_high)
-        {
-          best_high = d;
-          high = j;
-        }
-      }
-      if (low < 0 || high < 0)
-      {
-        continue;
-      }
-      const Eigen::Vector3d l = vec(last_s.points[closest]);
-      Eigen::Vector3d n = (vec(last_s.points[low]) - l).cross(vec(last_s.points[high]) - l);
-      const double norm = n.norm();
-      if (!(norm > 1e-9))
-      {
-        continue;
-      }
-      n /= norm;
-      problem.addResidual(PointToPlaneResidual::create(vec(p), n, -n.dot(l)));
-      ++m.planes;
-    }
-
+    std::tie(m.corners, m.planes) = problem.addMatches(slots);
     total = m;
     if (m.corners + m.planes < config_.min_correspondences)
     {
       break;
     }
-    problem.solve(config_.max_iterations);
+    problem.solve(config_.max_iterations, config_.threads);
     motion = problem.pose();
     if (outer + 1 == config_.outer_iterations)
     {
@@ -234,6 +242,14 @@ std::shared_ptr<const Cloud> LaserOdometry::toSweepEnd(const std::shared_ptr<con
 
 OdometryFrame LaserOdometry::process(const std::shared_ptr<const FeatureSet>& features)
 {
+  OdometryFrame frame = track(features);
+  indexLast();
+  return frame;
+}
+
+OdometryFrame LaserOdometry::track(const std::shared_ptr<const FeatureSet>& features)
+{
+  indexLast();  // in case the caller skipped it after the previous sweep
   OdometryFrame frame;
   frame.stamp = features->stamp;
 
@@ -286,7 +302,9 @@ OdometryFrame LaserOdometry::process(const std::shared_ptr<const FeatureSet>& fe
   frame.corners = toSweepEnd(features, features->less_sharp, motion_);
   frame.surfs = toSweepEnd(features, features->less_flat, motion_);
   frame.full = toSweepEnd(features, features->full, motion_);
-  keepAsLast(frame.corners, frame.surfs);
+  last_corners_ = frame.corners;
+  last_surfs_ = frame.surfs;
+  last_indexed_ = false;
   last_distorted_ = frame.distorted;
   return frame;
 }

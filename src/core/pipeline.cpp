@@ -40,12 +40,18 @@ PipelineOutput Pipeline::process(const Cloud& cloud, double stamp, bool has_ring
   }
 
   start = Clock::now();
-  out.odometry = odometry_.process(features);
+  out.odometry = odometry_.track(features);
   out.timings.odometry_ms = msSince(start);
 
   start = Clock::now();
-  out.mapping = mapping_.process(out.odometry);
+  out.mapping = mapping_.registerFrame(out.odometry);
   out.timings.mapping_ms = msSince(start);
+
+  // The work a node does after publishing the pose (see the nodelets).
+  start = Clock::now();
+  odometry_.indexLast();
+  mapping_.updateMap(out.mapping);
+  out.timings.update_ms = msSince(start);
   out.status = PipelineStatus::kOk;
   return out;
 }

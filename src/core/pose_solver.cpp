@@ -1,8 +1,11 @@
 #include "aloam_nodelet/core/pose_solver.h"
 
+#include <algorithm>
+
 #include <Eigen/Eigenvalues>
 
 #include "aloam_nodelet/core/ceres_compat.h"
+#include "aloam_nodelet/core/lidar_factors.h"
 
 namespace aloam
 {
@@ -18,6 +21,38 @@ ceres::Problem::Options problemOptions()
 }
 }  // namespace
 
+void MatchSlots::resize(std::size_t line_points, std::size_t plane_points)
+{
+  lines.resize(line_points);
+  line_found.assign(line_points, 0);
+  planes.resize(plane_points);
+  plane_found.assign(plane_points, 0);
+}
+
+std::pair<int, int> PoseProblem::addMatches(const MatchSlots& slots)
+{
+  int lines = 0, planes = 0;
+  for (std::size_t i = 0; i < slots.lines.size(); ++i)
+  {
+    if (slots.line_found[i])
+    {
+      const LineMatch& m = slots.lines[i];
+      addResidual(PointToLineResidual::create(m.point, m.a, m.direction));
+      ++lines;
+    }
+  }
+  for (std::size_t i = 0; i < slots.planes.size(); ++i)
+  {
+    if (slots.plane_found[i])
+    {
+      const PlaneMatch& m = slots.planes[i];
+      addResidual(PointToPlaneResidual::create(m.point, m.normal, m.d));
+      ++planes;
+    }
+  }
+  return { lines, planes };
+}
+
 PoseProblem::PoseProblem(const Pose& initial, double huber_delta)
   : q_{ initial.q.x(), initial.q.y(), initial.q.z(), initial.q.w() }
   , t_{ initial.t.x(), initial.t.y(), initial.t.z() }
@@ -28,9 +63,10 @@ PoseProblem::PoseProblem(const Pose& initial, double huber_delta)
   problem_.AddParameterBlock(t_, 3);
 }
 
-void PoseProblem::solve(int max_iterations)
+void PoseProblem::solve(int max_iterations, int threads)
 {
   ceres::Solver::Options options;
+  options.num_threads = std::max(1, threads);  // residual and Jacobian evaluation
   options.linear_solver_type = ceres::DENSE_QR;
   options.max_num_iterations = max_iterations;
   options.minimizer_progress_to_stdout = false;

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numeric>
 
+#include "aloam_nodelet/core/parallel.h"
 #include "aloam_nodelet/core/voxel_filter.h"
 
 namespace aloam
@@ -16,6 +17,9 @@ constexpr int kMaxRings = 256;
 // The first return of a ring may lead the sweep start by up to a quarter turn (beam azimuth offsets)
 // or lag it by up to three quarters (a beam that saw only sky at first).
 constexpr double kRingStartLead = 0.5 * M_PI;
+// Smaller sweeps are not worth a second thread; more than this many threads is not worth it either.
+constexpr int kMinPointsForThreads = 4096;
+constexpr int kMaxThreads = 8;
 // Azimuth overlap tolerated past the end of a sweep before a ring is taken to start over.
 constexpr double kFullTurnMargin = 5.0 * M_PI / 180.0;
 
@@ -265,26 +269,40 @@ void ScanRegistration::suppressNeighbours(const Cloud& full, int index, int ring
   }
 }
 
-void ScanRegistration::pickSector(const Cloud& full, int begin, int end, FeatureSet& out)
+void ScanRegistration::pickSector(const Cloud& full, int begin, int end, Worker& worker)
 {
   // [begin, end) lies inside one ring whose bounds are [ring_begin, ring_end).
   const int w = config_.curvature_half_window;
   const int ring_begin = begin - w;
   const int ring_end = end + w;
-  auto& order = scratch_.order;
   const auto& curvature = scratch_.curvature;
   auto& picked = scratch_.picked;
   auto& label = scratch_.label;
+  FeatureSet& out = worker.features;
+  auto& heap = worker.candidates;
+  const auto threshold = static_cast<float>(config_.curvature_threshold);
 
-  order.resize(static_cast<std::size_t>(end - begin));
-  std::iota(order.begin(), order.end(), begin);
-  std::sort(order.begin(), order.end(), [&](int a, int b) { return curvature[a] < curvature[b]; });
-
-  int taken = 0;
-  for (auto it = order.rbegin(); it != order.rend(); ++it)
+  // Edges: the free candidates above the threshold, sharpest first. A heap yields them in that order
+  // for the few a sector takes without sorting the whole sector; ties go to the lower index.
+  const auto less_sharp_than = [&](int a, int b) {
+    return curvature[a] < curvature[b] || (curvature[a] == curvature[b] && a > b);
+  };
+  heap.clear();
+  for (int i = begin; i < end; ++i)
   {
-    const int i = *it;
-    if (picked[i] != kFree || !(curvature[i] > config_.curvature_threshold))
+    if (curvature[i] > threshold)
+    {
+      heap.push_back(i);
+    }
+  }
+  std::make_heap(heap.begin(), heap.end(), less_sharp_than);
+  int taken = 0;
+  while (!heap.empty() && taken < config_.max_less_sharp_per_sector)
+  {
+    std::pop_heap(heap.begin(), heap.end(), less_sharp_than);
+    const int i = heap.back();
+    heap.pop_back();
+    if (picked[i] != kFree)
     {
       continue;
     }
@@ -293,29 +311,36 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, Feature
     {
       label[i] = kSharp;
       out.sharp.push_back(full.points[i]);
-      out.less_sharp.push_back(full.points[i]);
-    }
-    else if (taken <= config_.max_less_sharp_per_sector)
-    {
-      label[i] = kLessSharp;
-      out.less_sharp.push_back(full.points[i]);
     }
     else
     {
-      break;
+      label[i] = kLessSharp;
     }
+    out.less_sharp.push_back(full.points[i]);
     picked[i] = kTaken;
     suppressNeighbours(full, i, ring_begin, ring_end);
   }
 
-  taken = 0;
-  for (const int i : order)
+  // Planes: the free candidates below the threshold, flattest first.
+  const auto flatter_than = [&](int a, int b) {
+    return curvature[a] > curvature[b] || (curvature[a] == curvature[b] && a > b);
+  };
+  heap.clear();
+  for (int i = begin; i < end; ++i)
   {
-    if (taken >= config_.max_flat_per_sector)
+    if (curvature[i] < threshold)
     {
-      break;
+      heap.push_back(i);
     }
-    if (picked[i] != kFree || !(curvature[i] < config_.curvature_threshold))
+  }
+  std::make_heap(heap.begin(), heap.end(), flatter_than);
+  taken = 0;
+  while (!heap.empty() && taken < config_.max_flat_per_sector)
+  {
+    std::pop_heap(heap.begin(), heap.end(), flatter_than);
+    const int i = heap.back();
+    heap.pop_back();
+    if (picked[i] != kFree)
     {
       continue;
     }
@@ -330,8 +355,55 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, Feature
   {
     if (label[i] <= kPlain)
     {
-      scratch_.less_flat_ring.push_back(full.points[i]);
+      worker.less_flat_ring.push_back(full.points[i]);
     }
+  }
+}
+
+void ScanRegistration::extractRings(const Cloud& full, const std::vector<int>& ring_begin, int first_ring,
+                                    int end_ring, Worker& worker)
+{
+  const int w = config_.curvature_half_window;
+  const int min_ring_points = 2 * w + 1 + config_.sectors;
+  for (int r = first_ring; r < end_ring; ++r)
+  {
+    const int begin = ring_begin[r];
+    const int end = ring_begin[r + 1];
+    if (end - begin < min_ring_points)
+    {
+      continue;
+    }
+    // LOAM curvature: squared norm of (sum of the 2w neighbours - 2w * point).
+    for (int i = begin + w; i < end - w; ++i)
+    {
+      const Point& p = full.points[i];
+      float dx = -2.0f * w * p.x, dy = -2.0f * w * p.y, dz = -2.0f * w * p.z;
+      for (int k = i - w; k <= i + w; ++k)
+      {
+        if (k != i)
+        {
+          dx += full.points[k].x;
+          dy += full.points[k].y;
+          dz += full.points[k].z;
+        }
+      }
+      scratch_.curvature[i] = dx * dx + dy * dy + dz * dz;
+    }
+    markUnreliable(full, begin, end, worker.stats);
+
+    worker.less_flat_ring.clear();
+    const int first = begin + w;
+    const int span = (end - w) - first;
+    for (int s = 0; s < config_.sectors; ++s)
+    {
+      const int sp = first + span * s / config_.sectors;
+      const int ep = first + span * (s + 1) / config_.sectors;
+      if (ep > sp)
+      {
+        pickSector(full, sp, ep, worker);
+      }
+    }
+    voxelDownsample(worker.less_flat_ring, config_.less_flat_leaf_size, worker.features.less_flat);
   }
 }
 
@@ -391,45 +463,45 @@ bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, 
     scratch_.range[i] = std::sqrt(p.x * p.x + p.y * p.y + p.z * p.z);
   }
 
-  for (std::size_t r = 0; r + 1 < ring_begin.size(); ++r)
+  // Rings are independent from here on: split them over the threads in contiguous blocks of about
+  // equal point counts, then concatenate the blocks in ring order (the result does not depend on the split).
+  const int rings = static_cast<int>(ring_begin.size()) - 1;
+  const int parts = n < kMinPointsForThreads ? 1 : std::clamp(config_.threads, 1, kMaxThreads);
+  std::vector<int> split(static_cast<std::size_t>(parts) + 1, rings);
+  split[0] = 0;
+  for (int part = 1, r = 0; part < parts; ++part)
   {
-    const int begin = ring_begin[r];
-    const int end = ring_begin[r + 1];
-    if (end - begin < min_ring_points)
+    while (r < rings && ring_begin[r] < static_cast<long long>(n) * part / parts)
     {
-      continue;
+      ++r;
     }
-    // LOAM curvature: squared norm of (sum of the 2w neighbours - 2w * point).
-    for (int i = begin + w; i < end - w; ++i)
+    split[part] = r;
+  }
+  workers_.resize(static_cast<std::size_t>(parts));
+  for (Worker& worker : workers_)
+  {
+    for (Cloud* c : { &worker.features.sharp, &worker.features.less_sharp, &worker.features.flat,
+                      &worker.features.less_flat })
     {
-      const Point& p = out.full.points[i];
-      float dx = -2.0f * w * p.x, dy = -2.0f * w * p.y, dz = -2.0f * w * p.z;
-      for (int k = i - w; k <= i + w; ++k)
-      {
-        if (k != i)
-        {
-          dx += out.full.points[k].x;
-          dy += out.full.points[k].y;
-          dz += out.full.points[k].z;
-        }
-      }
-      scratch_.curvature[i] = dx * dx + dy * dy + dz * dz;
+      c->clear();
     }
-    markUnreliable(out.full, begin, end, stats);
-
-    scratch_.less_flat_ring.clear();
-    const int first = begin + w;
-    const int span = (end - w) - first;
-    for (int s = 0; s < config_.sectors; ++s)
+    worker.stats = RegistrationStats{};
+  }
+  parallelChunks(parts, parts, 1, [&](int first, int last, int) {
+    for (int part = first; part < last; ++part)
     {
-      const int sp = first + span * s / config_.sectors;
-      const int ep = first + span * (s + 1) / config_.sectors;
-      if (ep > sp)
-      {
-        pickSector(out.full, sp, ep, out);
-      }
+      extractRings(out.full, ring_begin, split[part], split[part + 1], workers_[part]);
     }
-    voxelDownsample(scratch_.less_flat_ring, config_.less_flat_leaf_size, out.less_flat);
+  });
+  for (const Worker& worker : workers_)
+  {
+    const FeatureSet& f = worker.features;
+    out.sharp.points.insert(out.sharp.points.end(), f.sharp.points.begin(), f.sharp.points.end());
+    out.less_sharp.points.insert(out.less_sharp.points.end(), f.less_sharp.points.begin(), f.less_sharp.points.end());
+    out.flat.points.insert(out.flat.points.end(), f.flat.points.begin(), f.flat.points.end());
+    out.less_flat.points.insert(out.less_flat.points.end(), f.less_flat.points.begin(), f.less_flat.points.end());
+    stats.occluded += worker.stats.occluded;
+    stats.grazing += worker.stats.grazing;
   }
 
   for (Cloud* c : { &out.sharp, &out.less_sharp, &out.flat, &out.less_flat })

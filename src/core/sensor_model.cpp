@@ -44,7 +44,7 @@ std::vector<double> vlp32cTable()
 
 std::vector<std::string> SensorModel::presetNames()
 {
-  return { "VLP16", "HDL32", "HDL64", "VLP32C", "OS1_64", "OS0_64" };
+  return { "VLP16", "HDL32", "HDL64", "VLP32C", "OS1_64", "OS0_64", "OS1_128" };
 }
 
 std::optional<SensorModel> SensorModel::fromPreset(const std::string& name)
@@ -78,6 +78,11 @@ std::optional<SensorModel> SensorModel::fromPreset(const std::string& name)
   else if (name == "OS0_64")
   {
     m = uniform(64, -45.0, 45.0);
+    m.columns_ = 1024;
+  }
+  else if (name == "OS1_128")
+  {
+    m = uniform(128, -22.5, 22.5);
     m.columns_ = 1024;
   }
   else

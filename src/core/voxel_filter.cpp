@@ -44,6 +44,65 @@ bool cellOf(float v, double inverse_leaf, std::int32_t& cell)
   cell = static_cast<std::int32_t>(c);
   return true;
 }
+
+// The voxel cells of the finite points of `in`, sorted by cell (x, then y, then z) and, within a cell, by
+// point index. Cells are packed into one 64-bit key when the cloud spans fewer than 2^21 cells per axis
+// (always, for lidar clouds): sorting integers is several times faster than comparing triples.
+std::vector<VoxelEntry> sortedCells(const Cloud& in, double inverse_leaf)
+{
+  std::vector<VoxelEntry> entries;
+  entries.reserve(in.size());
+  for (std::size_t i = 0; i < in.size(); ++i)
+  {
+    const Point& p = in.points[i];
+    VoxelEntry e{ 0, 0, 0, static_cast<std::uint32_t>(i) };
+    if (isFinite(p) && cellOf(p.x, inverse_leaf, e.x) && cellOf(p.y, inverse_leaf, e.y) &&
+        cellOf(p.z, inverse_leaf, e.z))
+    {
+      entries.push_back(e);
+    }
+  }
+  if (entries.empty())
+  {
+    return entries;
+  }
+  std::int64_t lo[3] = { entries[0].x, entries[0].y, entries[0].z };
+  std::int64_t hi[3] = { lo[0], lo[1], lo[2] };
+  for (const VoxelEntry& e : entries)
+  {
+    const std::int64_t c[3] = { e.x, e.y, e.z };
+    for (int a = 0; a < 3; ++a)
+    {
+      lo[a] = std::min(lo[a], c[a]);
+      hi[a] = std::max(hi[a], c[a]);
+    }
+  }
+  constexpr int kBits = 21;
+  constexpr std::int64_t kSpan = std::int64_t(1) << kBits;
+  if (hi[0] - lo[0] >= kSpan || hi[1] - lo[1] >= kSpan || hi[2] - lo[2] >= kSpan)
+  {
+    std::sort(entries.begin(), entries.end());
+    return entries;
+  }
+  // (packed cell, point index): the index breaks ties as the triple comparison does.
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> keys;
+  keys.reserve(entries.size());
+  for (const VoxelEntry& e : entries)
+  {
+    const auto key = (std::uint64_t(e.x - lo[0]) << (2 * kBits)) | (std::uint64_t(e.y - lo[1]) << kBits) |
+                     std::uint64_t(e.z - lo[2]);
+    keys.emplace_back(key, e.index);
+  }
+  std::sort(keys.begin(), keys.end());
+  for (std::size_t i = 0; i < keys.size(); ++i)
+  {
+    const std::uint64_t key = keys[i].first;
+    entries[i] = VoxelEntry{ static_cast<std::int32_t>(std::int64_t(key >> (2 * kBits)) + lo[0]),
+                             static_cast<std::int32_t>(std::int64_t((key >> kBits) & (kSpan - 1)) + lo[1]),
+                             static_cast<std::int32_t>(std::int64_t(key & (kSpan - 1)) + lo[2]), keys[i].second };
+  }
+  return entries;
+}
 }  // namespace
 
 std::size_t voxelDownsample(const Cloud& in, double leaf_size, Cloud& out)
@@ -61,21 +120,7 @@ std::size_t voxelDownsample(const Cloud& in, double leaf_size, Cloud& out)
     return out.size() - before;
   }
 
-  const double inverse_leaf = 1.0 / leaf_size;
-  std::vector<VoxelEntry> entries;
-  entries.reserve(in.size());
-  for (std::size_t i = 0; i < in.size(); ++i)
-  {
-    const Point& p = in.points[i];
-    VoxelEntry e{ 0, 0, 0, static_cast<std::uint32_t>(i) };
-    if (isFinite(p) && cellOf(p.x, inverse_leaf, e.x) && cellOf(p.y, inverse_leaf, e.y) &&
-        cellOf(p.z, inverse_leaf, e.z))
-    {
-      entries.push_back(e);
-    }
-  }
-  std::sort(entries.begin(), entries.end());
-
+  const std::vector<VoxelEntry> entries = sortedCells(in, 1.0 / leaf_size);
   out.points.reserve(before + entries.size());
   for (std::size_t begin = 0; begin < entries.size();)
   {

@@ -18,6 +18,7 @@
 #include <rosbag/view.h>
 
 #include "aloam_nodelet/core/pipeline.h"
+#include "aloam_nodelet/eval/timing_stats.h"
 #include "aloam_nodelet/eval/trajectory_io.h"
 #include "aloam_nodelet/io/kitti_dataset.h"
 #include "aloam_nodelet/ros/pointcloud2_reader.h"
@@ -32,7 +33,7 @@ constexpr const char* kUsage =
     "\n"
     "  --kitti DIR        KITTI odometry sequence folder: DIR/velodyne/*.bin (+ DIR/times.txt)\n"
     "  --bag FILE         rosbag with sensor_msgs/PointCloud2 on --topic\n"
-    "  --sensor PRESET    VLP16 | HDL32 | HDL64 | VLP32C | OS1_64 | OS0_64\n"
+    "  --sensor PRESET    VLP16 | HDL32 | HDL64 | VLP32C | OS1_64 | OS0_64 | OS1_128\n"
     "  --trajectory OUT   mapped lidar pose of every frame relative to the first, KITTI 3x4 rows\n"
     "  --tum OUT          the same poses in TUM format (stamp tx ty tz qx qy qz qw)\n"
     "  --map OUT.pcd      the feature map at the end (binary PCD)\n"
@@ -163,22 +164,9 @@ private:
 };
 
 /// Mean, median and 90th percentile of a series of milliseconds.
-std::string summary(std::vector<double> ms)
+std::string summary(const std::vector<double>& ms)
 {
-  if (ms.empty())
-  {
-    return "n/a";
-  }
-  double sum = 0.0;
-  for (const double v : ms)
-  {
-    sum += v;
-  }
-  std::sort(ms.begin(), ms.end());
-  char text[128];
-  std::snprintf(text, sizeof(text), "mean %6.1f  median %6.1f  p90 %6.1f ms", sum / ms.size(), ms[ms.size() / 2],
-                ms[std::min(ms.size() - 1, static_cast<std::size_t>(0.9 * ms.size()))]);
-  return text;
+  return aloam::eval::formatMs(aloam::eval::summarize(ms));
 }
 
 void showProgress(std::size_t done, std::size_t total, double seconds, bool tty)
@@ -314,7 +302,7 @@ int main(int argc, char** argv)
   aloam::Pipeline pipeline(config);
   aloam::eval::Trajectory trajectory;
   std::vector<double> stamps;
-  std::vector<double> registration_ms, odometry_ms, mapping_ms, total_ms;
+  std::vector<double> registration_ms, odometry_ms, mapping_ms, update_ms, pose_ms, total_ms;
   std::size_t rejected = 0, degraded_odometry = 0, degraded_mapping = 0;
   Frame frame;
   const bool tty = isatty(fileno(stderr));
@@ -331,7 +319,9 @@ int main(int argc, char** argv)
         pose = out.mapping.pose;
         odometry_ms.push_back(out.timings.odometry_ms);
         mapping_ms.push_back(out.timings.mapping_ms);
-        total_ms.push_back(out.timings.registration_ms + out.timings.odometry_ms + out.timings.mapping_ms);
+        update_ms.push_back(out.timings.update_ms);
+        pose_ms.push_back(out.timings.latencyPathMs());
+        total_ms.push_back(out.timings.totalMs());
         degraded_odometry += out.odometry.status == aloam::OdometryStatus::kDegraded;
         degraded_mapping += out.mapping.status == aloam::MappingStatus::kDegraded;
       }
@@ -380,6 +370,8 @@ int main(int argc, char** argv)
   std::cout << "registration: " << summary(registration_ms) << "\n";
   std::cout << "odometry:     " << summary(odometry_ms) << "\n";
   std::cout << "mapping:      " << summary(mapping_ms) << "\n";
+  std::cout << "to the pose:  " << summary(pose_ms) << "  (registration + odometry + mapping)\n";
+  std::cout << "map update:   " << summary(update_ms) << "  (after the pose: indexing, map insertion)\n";
   std::cout << "total:        " << summary(total_ms) << "\n";
   return rejected == frames ? 1 : 0;
 }

@@ -50,7 +50,7 @@ const char* const kUsage =
     "usage: aloam_sim --sensor PRESET --scene urban|corridor|field --trajectory car|handheld|straight\n"
     "                 --duration SECONDS --seed N [--noise SIGMA_M] [--dropout P] --bag OUT.bag\n"
     "                 [--kitti OUT_DIR]\n"
-    "  --sensor PRESET    VLP16, HDL32, HDL64, VLP32C (Velodyne layout), OS1_64, OS0_64 (Ouster layout)\n"
+    "  --sensor PRESET    VLP16, HDL32, HDL64, VLP32C (Velodyne layout), OS1_64, OS0_64, OS1_128 (Ouster layout)\n"
     "  --noise SIGMA_M    Gaussian range noise in metres (default 0.01)\n"
     "  --dropout P        probability of dropping a return (default 0)\n"
     "  --kitti OUT_DIR    also write OUT_DIR/velodyne/%06d.bin, times.txt and poses.txt\n";

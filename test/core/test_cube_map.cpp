@@ -13,6 +13,7 @@
 
 #include "test_support.h"
 #include "aloam_nodelet/core/cube_map.h"
+#include "aloam_nodelet/core/voxel_filter.h"
 
 namespace aloam
 {
@@ -283,6 +284,74 @@ TEST(CubeMapTest, HugeCoordinatesDoNotCrash)
   map.evictBeyond(Eigen::Vector3d::Zero(), 10.0);
   EXPECT_EQ(map.cornerCount(), 1u);
   EXPECT_EQ(map.surfCount(), 1u);
+}
+
+// With leaf sizes, inserting batch after batch leaves exactly what A-LOAM's "append, then downsample the
+// cube" gives: each voxel holds the mean of its previous point and the batch's new points.
+TEST(CubeMapTest, VoxelMergingMatchesDownsamplingAfterEveryBatch)
+{
+  constexpr double kCornerLeaf = 0.4, kSurfLeaf = 0.8;
+  CubeMap map(kCube, kCornerLeaf, kSurfLeaf);
+  // Reference per layer: the whole map as one cloud, downsampled after each batch (voxels never
+  // straddle cubes here: 50 m is a multiple of both leaves).
+  Cloud reference_corners, reference_surfs;
+  for (unsigned batch = 0; batch < 4; ++batch)
+  {
+    const Cloud corners = randomCloud(3000, 12.0, 10 + batch);
+    const Cloud surfs = randomCloud(3000, 30.0, 20 + batch);
+    map.insertCorners(corners);
+    map.insertSurfs(surfs);
+    reference_corners.points.insert(reference_corners.points.end(), corners.points.begin(), corners.points.end());
+    reference_surfs.points.insert(reference_surfs.points.end(), surfs.points.begin(), surfs.points.end());
+    voxelDownsampleInPlace(reference_corners, kCornerLeaf);
+    voxelDownsampleInPlace(reference_surfs, kSurfLeaf);
+    ASSERT_EQ(map.cornerCount(), reference_corners.size()) << "batch " << batch;
+    ASSERT_EQ(map.surfCount(), reference_surfs.size()) << "batch " << batch;
+  }
+  // Dense batches really merged (12 m cube of 0.4 m voxels, 12000 points: many shared voxels).
+  EXPECT_LT(map.cornerCount(), 12000u);
+
+  // Same points, same voxel means (compare after sorting both by position).
+  Cloud all;
+  map.collectAll(all);
+  Cloud map_corners;
+  map_corners.points.assign(all.points.begin(), all.points.begin() + map.cornerCount());
+  const auto byPosition = [](const Point& a, const Point& b) {
+    return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z);
+  };
+  // Downsample again at a tiny leaf: a no-op that sorts both clouds the same way.
+  std::sort(map_corners.points.begin(), map_corners.points.end(), byPosition);
+  std::sort(reference_corners.points.begin(), reference_corners.points.end(), byPosition);
+  std::size_t far = 0;
+  for (std::size_t i = 0; i < map_corners.size(); ++i)
+  {
+    const Point& a = map_corners.points[i];
+    const Point& b = reference_corners.points[i];
+    far += std::fabs(a.x - b.x) + std::fabs(a.y - b.y) + std::fabs(a.z - b.z) > 1e-4f ? 1 : 0;
+  }
+  EXPECT_EQ(far, 0u);
+  expectPointsInTheirCubes(map);
+}
+
+// New leaf sizes downsample what is there; re-bucketing with leaves keeps every point.
+TEST(CubeMapTest, SetLeafSizesDownsamplesAndRebucketingKeepsPoints)
+{
+  CubeMap map(kCube);
+  map.insertSurfs(randomCloud(20000, 20.0, 7));
+  EXPECT_EQ(map.surfCount(), 20000u);
+  map.setLeafSizes(0.4, 2.0);
+  Cloud reference = randomCloud(20000, 20.0, 7);
+  voxelDownsampleInPlace(reference, 2.0);
+  EXPECT_EQ(map.surfCount(), reference.size());
+  const std::size_t surfs = map.surfCount();
+  map.setCubeSize(7.3);  // 7.3 m is no multiple of 2 m: voxels straddle cubes, no point may merge
+  EXPECT_EQ(map.surfCount(), surfs);
+  expectPointsInTheirCubes(map);
+  // Later insertions still merge into the re-bucketed voxels (except where a voxel's point now lies in
+  // the neighbouring cube: voxels are per cube, as in A-LOAM).
+  map.insertSurfs(randomCloud(20000, 20.0, 7));
+  EXPECT_LT(map.surfCount(), surfs + 20000 / 4);
+  expectPointsInTheirCubes(map);
 }
 
 }  // namespace aloam

@@ -58,7 +58,7 @@ void expectEveryBeamOwnsItsNeighbourhood(const SensorModel& model)
 TEST(SensorModelTest, EveryPresetAssignsEveryBeamToItsRing)
 {
   const std::vector<std::string> names = SensorModel::presetNames();
-  const std::set<std::string> expected = { "VLP16", "HDL32", "HDL64", "VLP32C", "OS1_64", "OS0_64" };
+  const std::set<std::string> expected = { "VLP16", "HDL32", "HDL64", "VLP32C", "OS1_64", "OS0_64", "OS1_128" };
   EXPECT_EQ(std::set<std::string>(names.begin(), names.end()), expected);
   for (const std::string& name : names)
   {
@@ -85,6 +85,7 @@ TEST(SensorModelTest, PresetBeamCounts)
   EXPECT_EQ(SensorModel::fromPreset("VLP32C")->numRings(), 32);
   EXPECT_EQ(SensorModel::fromPreset("OS1_64")->numRings(), 64);
   EXPECT_EQ(SensorModel::fromPreset("OS0_64")->numRings(), 64);
+  EXPECT_EQ(SensorModel::fromPreset("OS1_128")->numRings(), 128);
 }
 
 // HDL64: the 64 beams map to 64 distinct rings 0..63, including 51-63 that A-LOAM's formula drops.

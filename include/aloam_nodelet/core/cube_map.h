@@ -31,29 +31,57 @@ struct CubeIndexHash
   }
 };
 
+/// Integer voxel coordinates: floor(position / leaf size) on each axis.
+struct VoxelKey
+{
+  std::int32_t x = 0, y = 0, z = 0;
+
+  bool operator==(const VoxelKey& o) const { return x == o.x && y == o.y && z == o.z; }
+};
+
+struct VoxelKeyHash
+{
+  std::size_t operator()(const VoxelKey& v) const
+  {
+    return static_cast<std::size_t>(std::int64_t(v.x) * 73856093LL ^ std::int64_t(v.y) * 19349669LL ^
+                                    std::int64_t(v.z) * 83492791LL);
+  }
+};
+
 /// Sparse map of cubes, each holding the edge and plane points that fall in it (world frame).
 /// No fixed grid: any finite position has a cube; cubes far from the robot can be evicted.
+///
+/// With a leaf size, each layer (edges, planes) keeps one point per voxel: a point landing in an occupied
+/// voxel is averaged into it, as downsampling the cube after every insertion would (A-LOAM), but at the
+/// cost of a hash look-up per new point instead of a sort of the whole cube.
 class CubeMap
 {
 public:
+  using VoxelIndex = std::unordered_map<VoxelKey, std::uint32_t, VoxelKeyHash>;
   struct Cube
   {
     Cloud corners;
     Cloud surfs;
+    VoxelIndex corner_voxels;  ///< occupied voxel -> its point in `corners` (empty without a leaf size)
+    VoxelIndex surf_voxels;
   };
 
-  explicit CubeMap(double cube_size = 50.0);
+  /// Leaf sizes <= 0 keep every point.
+  explicit CubeMap(double cube_size = 50.0, double corner_leaf_size = 0.0, double surf_leaf_size = 0.0);
 
   double cubeSize() const { return cube_size_; }
   /// Changes the cube size and moves every point into its new cube; no point is lost.
   void setCubeSize(double cube_size);
+  /// Changes the leaf sizes and downsamples every cube to them.
+  void setLeafSizes(double corner_leaf_size, double surf_leaf_size);
 
   /// Cube of a position. Non-finite positions map to the origin's cube (callers filter them first).
   CubeIndex indexOf(const Eigen::Vector3d& position) const;
   /// Centre of a cube in world coordinates.
   Eigen::Vector3d centreOf(const CubeIndex& index) const;
 
-  /// Adds points to their cubes; non-finite points are dropped. Returns the cubes that changed.
+  /// Adds points to their cubes (merging them into occupied voxels); non-finite points are dropped.
+  /// Returns the cubes that changed.
   std::vector<CubeIndex> insertCorners(const Cloud& world_points);
   std::vector<CubeIndex> insertSurfs(const Cloud& world_points);
 
@@ -84,9 +112,12 @@ public:
 
 private:
   double cube_size_;
+  double corner_leaf_size_;
+  double surf_leaf_size_;
   std::unordered_map<CubeIndex, Cube, CubeIndexHash> cubes_;
 
-  std::vector<CubeIndex> insert(const Cloud& world_points, bool corners);
+  std::vector<CubeIndex> insert(const Cloud& world_points, bool corners, bool merge = true);
+  static void reindex(Cloud& points, VoxelIndex& voxels, double leaf_size);
 };
 
 }  // namespace aloam

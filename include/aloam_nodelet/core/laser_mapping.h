@@ -3,11 +3,11 @@
 
 #include <cstddef>
 
-#include <pcl/kdtree/kdtree_flann.h>
-
 #include "aloam_nodelet/core/cube_map.h"
+#include "aloam_nodelet/core/kd_tree.h"
 #include "aloam_nodelet/core/laser_odometry.h"
 #include "aloam_nodelet/core/pose.h"
+#include "aloam_nodelet/core/pose_solver.h"
 
 namespace aloam
 {
@@ -43,6 +43,7 @@ struct LaserMappingConfig
   double min_constraint = 25.0;          ///< weaker constraint (see LaserOdometryConfig): keep the prediction
   double constraint_lever_arm = 10.0;    ///< metres; see PoseProblem::constraintStrength
   double eviction_radius = 1000.0;       ///< cubes farther than this from the robot are dropped (m); <= 0 keeps all
+  int threads = 2;                       ///< threads sharing the correspondence search (results do not depend on it)
 };
 
 enum class MappingStatus
@@ -76,8 +77,16 @@ public:
   /// Applies a new configuration; a new cube size re-buckets the map without losing points.
   void setConfig(const LaserMappingConfig& config);
 
-  /// Refines the frame's odometry pose against the map, then adds the frame's features to the map.
+  /// Refines the frame's odometry pose against the map, then adds the frame's features to the map:
+  /// registerFrame() then updateMap().
   MappingResult process(const OdometryFrame& frame);
+
+  /// Scan-to-map registration: the frame's pose in the map (and the new correction). The map is not
+  /// changed yet, so a node can publish the pose before the map work.
+  MappingResult registerFrame(const OdometryFrame& frame);
+  /// Adds the last registered frame to the map, evicts far cubes, and indexes the submap around the new
+  /// pose for the next registration; completes `result`'s map figures.
+  void updateMap(MappingResult& result);
 
   /// The odometry pose corrected into the map frame with the latest correction.
   Pose correct(const Pose& odometry_pose) const { return correction_ * odometry_pose; }
@@ -91,12 +100,22 @@ private:
   CubeMap map_;
   Pose correction_;
   std::size_t evicted_total_ = 0;
-  pcl::KdTreeFLANN<Point> corner_tree_;
-  pcl::KdTreeFLANN<Point> surf_tree_;
+  // The submap (cubes around the robot) and its search trees, ready before the frame that needs them.
+  Cloud submap_corners_, submap_surfs_;
+  KdTree corner_tree_;
+  KdTree surf_tree_;
+  CubeIndex submap_centre_;
+  bool submap_ready_ = false;
+  // The registered frame, downsampled, waiting for updateMap().
   Cloud corner_stack_, surf_stack_;
+  Pose pending_pose_;
+  bool pending_insert_ = false;
 
-  int solve(const Cloud& submap_corners, const Cloud& submap_surfs, Pose& pose, MappingResult& result);
+  int solve(Pose& pose, MappingResult& result);
+  bool matchEdge(const Point& p, const Pose& pose, LineMatch& match) const;
+  bool matchPlane(const Point& p, const Pose& pose, PlaneMatch& match) const;
   void insert(const Pose& pose);
+  void prepareSubmap(const CubeIndex& centre);
 };
 
 }  // namespace aloam

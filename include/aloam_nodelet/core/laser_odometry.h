@@ -3,10 +3,12 @@
 
 #include <memory>
 
-#include <pcl/kdtree/kdtree_flann.h>
+#include <vector>
 
 #include "aloam_nodelet/core/feature_set.h"
+#include "aloam_nodelet/core/kd_tree.h"
 #include "aloam_nodelet/core/pose.h"
+#include "aloam_nodelet/core/pose_solver.h"
 
 namespace aloam
 {
@@ -27,6 +29,7 @@ struct LaserOdometryConfig
   /// a point constraint_lever_arm metres away) keeps the motion prior.
   double min_constraint = 10.0;
   double constraint_lever_arm = 10.0;
+  int threads = 2;                      ///< threads sharing the correspondence search (results do not depend on it)
 };
 
 enum class OdometryStatus
@@ -63,8 +66,14 @@ public:
   void setConfig(const LaserOdometryConfig& config) { config_ = config; }
 
   /// Matches `features` against the previous sweep and returns the new pose. The frame shares the
-  /// clouds of `features` when no deskewing is done (no copy).
+  /// clouds of `features` when no deskewing is done (no copy). track() then indexLast().
   OdometryFrame process(const std::shared_ptr<const FeatureSet>& features);
+
+  /// The new pose and frame; the sweep becomes the reference for the next one, indexed by indexLast().
+  OdometryFrame track(const std::shared_ptr<const FeatureSet>& features);
+  /// Builds the search trees over the last tracked sweep (off the latency path: a node publishes the
+  /// frame first). track() does it itself if it was not done.
+  void indexLast();
 
   /// Forgets the previous sweep and the pose; the next sweep starts a new trajectory at identity.
   void reset();
@@ -87,15 +96,20 @@ private:
   std::shared_ptr<const Cloud> last_corners_;
   std::shared_ptr<const Cloud> last_surfs_;
   bool last_distorted_ = false;  // the previous sweep's clouds could not be deskewed
-  std::vector<int> last_corner_ring_begin_;
-  std::vector<int> last_surf_ring_begin_;
-  pcl::KdTreeFLANN<Point> corner_tree_;
-  pcl::KdTreeFLANN<Point> surf_tree_;
+  bool last_indexed_ = false;    // the trees below index last_corners_ / last_surfs_
+  // The previous sweep's features indexed as a whole (nearest point) and ring by ring (the points
+  // that complete a line or a plane on neighbouring rings).
+  KdTree corner_tree_;
+  KdTree surf_tree_;
+  std::vector<KdTree> corner_ring_trees_;
+  std::vector<KdTree> surf_ring_trees_;
 
   Matches solve(const Cloud& sharp, const Cloud& flat, Pose& motion) const;
+  bool matchEdge(const Point& p, const Pose& motion, LineMatch& match) const;
+  bool matchPlane(const Point& p, const Pose& motion, PlaneMatch& match) const;
   std::shared_ptr<const Cloud> toSweepEnd(const std::shared_ptr<const FeatureSet>& owner, const Cloud& cloud,
                                           const Pose& motion) const;
-  void keepAsLast(std::shared_ptr<const Cloud> corners, std::shared_ptr<const Cloud> surfs);
+  static void indexByRing(const Cloud& cloud, KdTree& all, std::vector<KdTree>& rings);
 };
 
 /// Moves every point of `in` (taken at its `time` within a sweep of `scan_period` seconds, during which

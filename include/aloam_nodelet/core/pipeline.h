@@ -22,11 +22,18 @@ enum class PipelineStatus
   kRejectedInput,  ///< too few usable points: nothing changed, no pose for this sweep
 };
 
+/// Wall time of each step. The first three lie on the latency path (input to mapped pose); the update
+/// (indexing the sweep for the next odometry, adding it to the map, indexing the submap) comes after
+/// the pose is out.
 struct PipelineTimings
 {
   double registration_ms = 0.0;
   double odometry_ms = 0.0;
   double mapping_ms = 0.0;
+  double update_ms = 0.0;
+
+  double latencyPathMs() const { return registration_ms + odometry_ms + mapping_ms; }
+  double totalMs() const { return latencyPathMs() + update_ms; }
 };
 
 struct PipelineOutput

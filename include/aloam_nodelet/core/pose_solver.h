@@ -2,6 +2,8 @@
 #pragma once
 
 #include <memory>
+#include <utility>
+#include <vector>
 
 #include <ceres/ceres.h>
 
@@ -9,6 +11,30 @@
 
 namespace aloam
 {
+/// A point of the current sweep matched to a line of the reference (through `a`, unit `direction`).
+struct LineMatch
+{
+  Eigen::Vector3d point, a, direction;
+};
+
+/// A point of the current sweep matched to a plane of the reference: normal . x + d = 0.
+struct PlaneMatch
+{
+  Eigen::Vector3d point, normal;
+  double d = 0.0;
+};
+
+/// One slot per point, filled by independent searches (possibly on several threads), then added to a
+/// problem in point order, so the problem does not depend on how the search was split.
+struct MatchSlots
+{
+  std::vector<LineMatch> lines;
+  std::vector<PlaneMatch> planes;
+  std::vector<char> line_found, plane_found;
+
+  void resize(std::size_t line_points, std::size_t plane_points);
+};
+
 /// A Ceres problem over one pose (q in Eigen's x, y, z, w order on the unit-quaternion manifold, and t),
 /// with one shared robust loss for all residuals.
 class PoseProblem
@@ -17,10 +43,12 @@ public:
   PoseProblem(const Pose& initial, double huber_delta);
 
   void addResidual(ceres::CostFunction* cost) { problem_.AddResidualBlock(cost, loss_.get(), q_, t_); }
+  /// Adds a residual for every found match, lines then planes; returns how many of each.
+  std::pair<int, int> addMatches(const MatchSlots& slots);
   int residualCount() const { return problem_.NumResidualBlocks(); }
 
-  /// Runs at most `max_iterations` Levenberg-Marquardt iterations.
-  void solve(int max_iterations);
+  /// Runs at most `max_iterations` Levenberg-Marquardt iterations, evaluating on `threads` threads.
+  void solve(int max_iterations, int threads = 1);
   Pose pose() const;
 
   /// How well the residuals pin the pose down: the smallest eigenvalue of J^T J at the current pose, with

@@ -36,6 +36,7 @@ struct ScanRegistrationConfig
   double occlusion_max_bearing = 0.1;  ///< ... if their bearings differ by less than this (rad)
   bool reject_grazing = false;       ///< no features on surfaces nearly parallel to the beam
   double grazing_gap_ratio_sq = 0.0002;  ///< gap^2 to both neighbours above this * range^2
+  int threads = 2;                   ///< threads sharing the rings of a sweep (results do not depend on it)
 };
 
 /// Turns one sweep into a FeatureSet. Holds only its configuration and reusable buffers; a sweep never
@@ -58,21 +59,31 @@ private:
   {
     std::vector<std::vector<Point>> rings;
     std::vector<std::vector<float>> azimuths;  // atan2(y, x) of each ring's points, without a time field
+    // Per point of the full cloud (each ring touches only its own points, so threads share these).
     std::vector<float> curvature;
     std::vector<float> range;
     std::vector<std::uint8_t> picked;
     std::vector<std::int8_t> label;
-    std::vector<int> order;
+  };
+  /// What one thread needs and produces for its rings.
+  struct Worker
+  {
+    std::vector<int> candidates;
     Cloud less_flat_ring;
+    FeatureSet features;  // sharp, less_sharp, flat, less_flat of the worker's rings
+    RegistrationStats stats;
   };
 
   ScanRegistrationConfig config_;
   Scratch scratch_;
+  std::vector<Worker> workers_;
 
   void assignRingsAndTimes(const Cloud& cloud, bool has_ring, bool has_time, RegistrationStats& stats);
   void timesFromAzimuth(double start_azimuth);
+  void extractRings(const Cloud& full, const std::vector<int>& ring_begin, int first_ring, int end_ring,
+                    Worker& worker);
   void markUnreliable(const Cloud& full, int begin, int end, RegistrationStats& stats);
-  void pickSector(const Cloud& full, int begin, int end, FeatureSet& out);
+  void pickSector(const Cloud& full, int begin, int end, Worker& worker);
   void suppressNeighbours(const Cloud& full, int index, int ring_begin, int ring_end);
 };
 

@@ -12,7 +12,7 @@ namespace aloam
 class SensorModel
 {
 public:
-  /// Known presets: VLP16, HDL32, HDL64, VLP32C, OS1_64, OS0_64. Case-sensitive; empty if unknown.
+  /// Known presets: VLP16, HDL32, HDL64, VLP32C, OS1_64, OS0_64, OS1_128. Case-sensitive; empty if unknown.
   static std::optional<SensorModel> fromPreset(const std::string& name);
   static std::vector<std::string> presetNames();
   /// `beams` uniformly spaced beams from `min_elevation_deg` to `max_elevation_deg` (inclusive).

@@ -1,0 +1,192 @@
+#include "aloam_nodelet/core/kd_tree.h"
+
+#include <algorithm>
+
+namespace aloam
+{
+namespace
+{
+// Points per leaf: small enough to prune well, large enough that the tree stays shallow.
+constexpr int kLeafSize = 8;
+
+float squaredDistance(const float* a, const float* b)
+{
+  const float dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
+  return dx * dx + dy * dy + dz * dz;
+}
+}  // namespace
+
+/// The best candidates so far, nearest first, at most `k` of them, all below the search radius.
+class KdTree::Candidates
+{
+public:
+  Candidates(int k, float max_sq_distance, int skip, std::vector<int>& index, std::vector<float>& sq_distance)
+    : k_(k), bound_(max_sq_distance), skip_(skip), index_(index), sq_distance_(sq_distance)
+  {
+    index_.clear();
+    sq_distance_.clear();
+  }
+
+  /// Squared distance a new point must beat.
+  float bound() const { return bound_; }
+
+  void offer(int index, float sq_distance)
+  {
+    if (!(sq_distance < bound_) || index == skip_)
+    {
+      return;
+    }
+    if (static_cast<int>(index_.size()) == k_)
+    {
+      index_.pop_back();
+      sq_distance_.pop_back();
+    }
+    // Insertion keeps the (short) list sorted.
+    const auto at = std::upper_bound(sq_distance_.begin(), sq_distance_.end(), sq_distance);
+    const auto offset = at - sq_distance_.begin();
+    sq_distance_.insert(at, sq_distance);
+    index_.insert(index_.begin() + offset, index);
+    if (static_cast<int>(index_.size()) == k_)
+    {
+      bound_ = sq_distance_.back();
+    }
+  }
+
+private:
+  int k_;
+  float bound_;
+  int skip_;
+  std::vector<int>& index_;
+  std::vector<float>& sq_distance_;
+};
+
+void KdTree::clear()
+{
+  entries_.clear();
+  nodes_.clear();
+}
+
+void KdTree::build(const Cloud& cloud)
+{
+  build(cloud, 0, static_cast<int>(cloud.size()));
+}
+
+void KdTree::build(const Cloud& cloud, int begin, int end)
+{
+  clear();
+  begin = std::max(begin, 0);
+  end = std::min(end, static_cast<int>(cloud.size()));
+  for (int i = begin; i < end; ++i)
+  {
+    const Point& p = cloud.points[i];
+    if (isFinite(p))
+    {
+      entries_.push_back(Entry{ { p.x, p.y, p.z }, i });
+    }
+  }
+  if (!entries_.empty())
+  {
+    nodes_.reserve(2 * entries_.size() / kLeafSize + 1);
+    buildNode(0, static_cast<int>(entries_.size()));
+  }
+}
+
+int KdTree::buildNode(int begin, int end)
+{
+  const int id = static_cast<int>(nodes_.size());
+  nodes_.push_back(Node{ begin, end });
+  if (end - begin <= kLeafSize)
+  {
+    return id;
+  }
+  // Split the widest extent at its median.
+  float lo[3] = { entries_[begin].p[0], entries_[begin].p[1], entries_[begin].p[2] };
+  float hi[3] = { lo[0], lo[1], lo[2] };
+  for (int i = begin + 1; i < end; ++i)
+  {
+    for (int a = 0; a < 3; ++a)
+    {
+      lo[a] = std::min(lo[a], entries_[i].p[a]);
+      hi[a] = std::max(hi[a], entries_[i].p[a]);
+    }
+  }
+  int axis = 0;
+  for (int a = 1; a < 3; ++a)
+  {
+    if (hi[a] - lo[a] > hi[axis] - lo[axis])
+    {
+      axis = a;
+    }
+  }
+  const int mid = begin + (end - begin) / 2;
+  std::nth_element(entries_.begin() + begin, entries_.begin() + mid, entries_.begin() + end,
+                   [axis](const Entry& a, const Entry& b) { return a.p[axis] < b.p[axis]; });
+  const float split = entries_[mid].p[axis];
+  const int left = buildNode(begin, mid);
+  const int right = buildNode(mid, end);
+  Node& node = nodes_[id];
+  node.left = left;
+  node.right = right;
+  node.axis = axis;
+  node.split = split;
+  return id;
+}
+
+void KdTree::search(int id, const float* q, Candidates& found) const
+{
+  const Node& node = nodes_[id];
+  if (node.left < 0)
+  {
+    for (int i = node.begin; i < node.end; ++i)
+    {
+      found.offer(entries_[i].index, squaredDistance(entries_[i].p, q));
+    }
+    return;
+  }
+  // Left holds coordinates <= split, right >= split: descend the query's side first, then the other
+  // side only if the splitting plane is closer than the current bound.
+  const float diff = q[node.axis] - node.split;
+  const int near_side = diff < 0.0f ? node.left : node.right;
+  const int far_side = diff < 0.0f ? node.right : node.left;
+  search(near_side, q, found);
+  if (diff * diff < found.bound())
+  {
+    search(far_side, q, found);
+  }
+}
+
+int KdTree::nearest(const Point& query, float max_sq_distance, float* sq_distance, int skip) const
+{
+  thread_local std::vector<int> index;
+  thread_local std::vector<float> distance;
+  if (nodes_.empty() || !isFinite(query))
+  {
+    return -1;
+  }
+  const float q[3] = { query.x, query.y, query.z };
+  Candidates found(1, max_sq_distance, skip, index, distance);
+  search(0, q, found);
+  if (index.empty())
+  {
+    return -1;
+  }
+  if (sq_distance != nullptr)
+  {
+    *sq_distance = distance.front();
+  }
+  return index.front();
+}
+
+int KdTree::nearestK(const Point& query, int k, float max_sq_distance, std::vector<int>& index,
+                     std::vector<float>& sq_distance) const
+{
+  Candidates found(std::max(k, 0), max_sq_distance, -1, index, sq_distance);
+  if (k > 0 && !nodes_.empty() && isFinite(query))
+  {
+    const float q[3] = { query.x, query.y, query.z };
+    search(0, q, found);
+  }
+  return static_cast<int>(index.size());
+}
+
+}  // namespace aloam
