@@ -48,7 +48,9 @@ private:
   void frameCb(const aloam::ros_io::StampedOdometryFrame::ConstPtr& msg);
   void work();
   void map(const aloam::ros_io::StampedOdometryFrame& msg);
-  void publishOutputs(const aloam::ros_io::StampedOdometryFrame& msg, const aloam::MappingResult& result);
+  void publishPose(const std_msgs::Header& header, const aloam::MappingResult& result);
+  void publishClouds(const aloam::ros_io::StampedOdometryFrame& msg, const aloam::MappingResult& result,
+                     const std_msgs::Header& header);
   std::optional<aloam::Pose> baseFromSensor(const std::string& sensor_frame);
   bool saveMapCb(SaveMap::Request& request, SaveMap::Response& response);
   bool saveTrajectoryCb(SaveTrajectory::Request& request, SaveTrajectory::Response& response);
@@ -135,7 +137,9 @@ void LaserMappingNodelet::onInit()
   path_max_poses_ = static_cast<std::size_t>(boundedParam(pnh, name, "path_max_poses", 10000, 1, 1'000'000));
   map_publish_period_ = boundedParam(pnh, name, "map_publish_period", map_publish_period_, 0.0, 3600.0);
   surround_every_ = boundedParam(pnh, name, "surround_every", surround_every_, 1, 1000);
-  mapping_ = std::make_unique<aloam::LaserMapping>();
+  aloam::LaserMappingConfig config;
+  config.threads = boundedParam(pnh, name, "threads", config.threads, 1, 16);
+  mapping_ = std::make_unique<aloam::LaserMapping>(config);
   path_.header.frame_id = map_frame_;
 
   warnOutOfRange<LaserMappingConfig>(pnh, name);
@@ -289,11 +293,17 @@ void LaserMappingNodelet::work()
 
 void LaserMappingNodelet::map(const aloam::ros_io::StampedOdometryFrame& msg)
 {
-  const aloam::MappingResult result = mapping_->process(msg.frame);
+  aloam::MappingResult result = mapping_->registerFrame(msg.frame);
   {
     std::lock_guard<std::mutex> lock(correction_mutex_);
     correction_ = result.correction;
   }
+  std_msgs::Header header;
+  header.stamp = msg.header.stamp;
+  header.frame_id = map_frame_;
+  publishPose(header, result);
+  // After the pose is out: the frame joins the map and the submap is indexed for the next frame.
+  mapping_->updateMap(result);
   last_result_ = result;
   if (result.status == aloam::MappingStatus::kDegraded)
   {
@@ -304,16 +314,11 @@ void LaserMappingNodelet::map(const aloam::ros_io::StampedOdometryFrame& msg)
   trajectory_.push_back(result.pose.isometry());
   trajectory_stamps_.push_back(msg.header.stamp.toSec());
   ++frames_mapped_;
-  publishOutputs(msg, result);
+  publishClouds(msg, result, header);
 }
 
-void LaserMappingNodelet::publishOutputs(const aloam::ros_io::StampedOdometryFrame& msg,
-                                         const aloam::MappingResult& result)
+void LaserMappingNodelet::publishPose(const std_msgs::Header& header, const aloam::MappingResult& result)
 {
-  std_msgs::Header header;
-  header.stamp = msg.header.stamp;
-  header.frame_id = map_frame_;
-
   const nav_msgs::Odometry odom = aloam::ros_io::toOdometryMsg(result.pose, header, child_frame_);
   mapped_pub_.publish(odom);
   if (publish_tf_ && !rep105_)
@@ -340,7 +345,11 @@ void LaserMappingNodelet::publishOutputs(const aloam::ros_io::StampedOdometryFra
   pose.header = header;
   pose.pose = odom.pose.pose;
   appendAndPublish(path_, pose, path_max_poses_, path_pub_);
+}
 
+void LaserMappingNodelet::publishClouds(const aloam::ros_io::StampedOdometryFrame& msg,
+                                        const aloam::MappingResult& result, const std_msgs::Header& header)
+{
   if (registered_pub_.getNumSubscribers() > 0 && msg.frame.full)
   {
     aloam::Cloud world;

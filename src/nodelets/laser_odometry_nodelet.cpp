@@ -58,6 +58,7 @@ void LaserOdometryNodelet::onInit()
   // Read once at start-up; the rest comes through dynamic_reconfigure (reconfigureCb).
   aloam::LaserOdometryConfig config;
   pnh.param("constant_velocity", config.constant_velocity, config.constant_velocity);
+  config.threads = boundedParam(pnh, name, "threads", config.threads, 1, 16);
   pnh.param<std::string>("world_frame", world_frame_, "camera_init");
   pnh.param<std::string>("child_frame", child_frame_, "laser_odom");
   path_max_poses_ = static_cast<std::size_t>(boundedParam(pnh, name, "path_max_poses", 10000, 1, 1'000'000));
@@ -141,7 +142,7 @@ void LaserOdometryNodelet::process(const aloam::ros_io::StampedFeatureSet::Const
   }
 
   auto out = boost::make_shared<aloam::ros_io::StampedOdometryFrame>();
-  out->frame = odometry_->process(msg->features);
+  out->frame = odometry_->track(msg->features);
   out->header.stamp = stamp;
   out->header.frame_id = world_frame_;
   out->child_frame_id = child_frame_;
@@ -167,6 +168,8 @@ void LaserOdometryNodelet::process(const aloam::ros_io::StampedFeatureSet::Const
   publishCloudIfSubscribed(corner_pub_, *out->frame.corners, msg->header);
   publishCloudIfSubscribed(surf_pub_, *out->frame.surfs, msg->header);
   publishCloudIfSubscribed(full_pub_, *out->frame.full, msg->header);
+  // Off the latency path: mapping already has the frame.
+  odometry_->indexLast();
 }
 
 }  // namespace aloam_nodelet

@@ -58,7 +58,7 @@ aloam::SensorModel ScanRegistrationNodelet::sensorModel(const std::string& prese
     NODELET_INFO("sensor: %s", preset.c_str());
     return *model;
   }
-  NODELET_ERROR("unknown sensor preset '%s' (VLP16, HDL32, HDL64, VLP32C, OS1_64, OS0_64); using VLP16",
+  NODELET_ERROR("unknown sensor preset '%s' (VLP16, HDL32, HDL64, VLP32C, OS1_64, OS0_64, OS1_128); using VLP16",
                 preset.c_str());
   return *aloam::SensorModel::fromPreset("VLP16");
 }
@@ -72,6 +72,7 @@ void ScanRegistrationNodelet::onInit()
   // Read once at start-up; the rest comes through dynamic_reconfigure (reconfigureCb).
   aloam::ScanRegistrationConfig config;
   config.scan_period = boundedParam(pnh, name, "scan_period", config.scan_period, 0.01, 1.0);
+  config.threads = boundedParam(pnh, name, "threads", config.threads, 1, 16);
   pnh.param("min_elevation_deg", min_elevation_deg_, min_elevation_deg_);
   pnh.param("max_elevation_deg", max_elevation_deg_, max_elevation_deg_);
   reader_options_.scan_period = config.scan_period;
