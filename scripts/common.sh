@@ -19,7 +19,7 @@ ALOAM_DEBIAN_PACKAGES=(
   libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure libdiagnostic-updater-dev
   python3-rostest librostest-dev python3-rosbag python3-nodelet python3-roslaunch libgtest-dev
   ros-message-generation ros-message-runtime python3-genmsg python3-gencpp python3-genpy libstd-msgs-dev
-  python3-numpy python3-rospy python3-tf2-ros rviz
+  python3-numpy python3-rospy python3-tf2-ros rviz python3-matplotlib
 )
 
 aloam_log() { printf '\033[1m[aloam]\033[0m %s\n' "$*" >&2; }

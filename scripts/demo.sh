@@ -1,55 +1,128 @@
 #!/usr/bin/env bash
-# The main job on an embedded default: installs what it needs, builds, maps a KITTI-layout sequence
-# with aloam_offline, evaluates it against ground truth when there is one, and says where it all went.
-#   ./scripts/demo.sh            KITTI 00 frames 0-100 from ../shared/data/kitti00_101
-#   ./scripts/demo.sh DIR        any KITTI-layout folder: DIR/velodyne/*.bin [+ times.txt, calib.txt,
-#                                poses_kitti_gt.txt or poses.txt]
+# The main job on an embedded default: installs what it needs, builds, runs the real nodelet pipeline
+# (roslaunch aloam.launch) on a sequence, saves the mapped trajectory and the map through the nodelet's
+# services, evaluates against ground truth, plots, and says where it all went.
+#   ./scripts/demo.sh            simulates a 10 s urban drive with a VLP-16 (aloam_sim, exact ground truth)
+#                                and plays the bag into the pipeline with rosbag play, in real time
+#   ./scripts/demo.sh DIR        a KITTI-layout folder: DIR/velodyne/*.bin [+ times.txt, calib.txt,
+#                                poses_kitti_gt.txt or poses.txt], replayed frame by frame (HDL64 preset;
+#                                ALOAM_DEMO_SENSOR=PRESET for another sensor), e.g. ../shared/data/kitti00_101
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
 
-data="${1:-$ALOAM_DATA/kitti00_101}"
-if [ ! -d "$data/velodyne" ]; then
+data="${1:-}"
+if [ -n "$data" ] && [ ! -d "$data/velodyne" ]; then
   cat >&2 <<MSG
-demo: no KITTI-layout sequence at $data
-  The default demo reads KITTI odometry sequence 00, frames 0-100, from ../shared/data/kitti00_101
-  (a folder beside this repository: velodyne/*.bin, times.txt, calib.txt, poses_kitti_gt.txt).
-  Give another KITTI-layout folder as the argument: ./scripts/demo.sh /path/to/sequence
+demo: $data is not a KITTI-layout sequence (no velodyne/ folder)
+  Give a folder with velodyne/*.bin (optional times.txt, calib.txt, poses_kitti_gt.txt or poses.txt),
+  e.g. ./scripts/demo.sh ../shared/data/kitti00_101, or no argument for the simulated default.
 MSG
   exit 2
 fi
 
 aloam_install_deps
 aloam_build
+aloam_source_ws
 bin="$ALOAM_WS/devel/lib/aloam_nodelet"
 out="$ALOAM_ROOT/out/demo-$(date +%Y%m%d-%H%M%S)"
 mkdir -p "$out"
 
-aloam_log "mapping $data"
-"$bin/aloam_offline" --kitti "$data" --sensor HDL64 --trajectory "$out/trajectory_kitti.txt" \
-  --tum "$out/trajectory.tum" --map "$out/map.pcd" | tee "$out/summary.txt"
+# A master of our own on a free port, so a roscore (or another demo) already running is left alone.
+port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+export ROS_MASTER_URI="http://127.0.0.1:$port" ROS_HOSTNAME=127.0.0.1
 
-gt=""
-for candidate in poses_kitti_gt.txt poses.txt; do
-  [ -f "$data/$candidate" ] && { gt="$data/$candidate"; break; }
-done
-if [ -n "$gt" ]; then
-  aloam_log "evaluating against $gt"
-  calib=()
-  [ -f "$data/calib.txt" ] && calib=(--calib "$data/calib.txt")
-  start=0
-  # The official KITTI 00 ground truth disagrees with the scans over frames 0-5.
-  [ "$(basename "$gt")" = poses_kitti_gt.txt ] && start=6
-  "$bin/aloam_eval" --gt "$gt" "${calib[@]}" --trajectory "$out/trajectory_kitti.txt" --start "$start" \
-    --segments 10,20,30,40,50,60,70 | tee -a "$out/summary.txt"
+pipeline_pid=""
+stop_pipeline() {
+  if [ -n "$pipeline_pid" ] && kill -0 "$pipeline_pid" 2>/dev/null; then
+    kill -INT "$pipeline_pid" 2>/dev/null || true
+    wait "$pipeline_pid" 2>/dev/null || true
+  fi
+  pipeline_pid=""
+}
+trap stop_pipeline EXIT
+
+# start_pipeline SENSOR: roslaunch aloam.launch in the background (log in $out/pipeline.log), then waits
+# until laser_mapping offers its services.
+start_pipeline() {
+  aloam_log "starting the pipeline: roslaunch aloam_nodelet aloam.launch sensor:=$1 rviz:=false (master $ROS_MASTER_URI)"
+  roslaunch aloam_nodelet aloam.launch sensor:="$1" rviz:=false >"$out/pipeline.log" 2>&1 &
+  pipeline_pid=$!
+  local waited=0
+  until rosservice list 2>/dev/null | grep -q '^/laser_mapping/save_trajectory$'; do
+    kill -0 "$pipeline_pid" 2>/dev/null || { aloam_log "the pipeline exited, see $out/pipeline.log"; exit 1; }
+    [ $waited -lt 60 ] || { aloam_log "the pipeline did not come up in 60 s, see $out/pipeline.log"; exit 1; }
+    sleep 1
+    waited=$((waited + 1))
+  done
+  aloam_log "pipeline up (nodelet manager + scan_registration, laser_odometry, laser_mapping)"
+}
+
+# call_service NAME YAML: rosservice call, failing unless the nodelet reports success.
+call_service() {
+  local answer
+  answer=$(rosservice call "$1" "$2" 2>&1) || true
+  echo "$answer" | grep -q "success: True" || { aloam_log "$1 failed: $answer"; exit 1; }
+}
+
+save_results() {
+  aloam_log "saving the mapped trajectory and the map (laser_mapping services)"
+  call_service /laser_mapping/save_trajectory "{path: '$out/trajectory_kitti.txt', format: 'kitti'}"
+  call_service /laser_mapping/save_trajectory "{path: '$out/trajectory.tum', format: 'tum'}"
+  call_service /laser_mapping/save_map "{path: '$out/map.pcd'}"
+}
+
+if [ -z "$data" ]; then
+  sensor=VLP16
+  bag="$out/sim_urban_vlp16.bag"
+  aloam_log "simulating a 10 s urban drive with a $sensor (aloam_sim, seed 7)"
+  "$bin/aloam_sim" --sensor "$sensor" --scene urban --trajectory car --duration 10 --seed 7 --bag "$bag" \
+    | tee "$out/simulation.txt"
+  start_pipeline "$sensor"
+  aloam_log "playing the bag in real time (rosbag play, velodyne_points only)"
+  # -d: time for the pipeline to connect to the new publisher before the first sweep.
+  rosbag play -d 2 --topics velodyne_points -- "$bag"
+  echo
+  sleep 2  # the last sweeps leave mapping
+  save_results
+  stop_pipeline
+  aloam_log "evaluating against the simulator's ground truth"
+  python3 "$ALOAM_ROOT/scripts/demo_report.py" --out "$out" --estimate-tum "$out/trajectory.tum" --bag "$bag" \
+    --eval "$bin/aloam_eval" --segments 10,20,40,80 --title "simulated urban drive, VLP-16, live nodelet pipeline"
 else
-  aloam_log "no ground truth in $data: trajectory not evaluated"
+  sensor="${ALOAM_DEMO_SENSOR:-HDL64}"
+  frames=$(find "$data/velodyne" -name '*.bin' | wc -l)
+  start_pipeline "$sensor"
+  aloam_log "replaying $frames frames of $data into the pipeline, each waiting for its mapped pose"
+  python3 "$ALOAM_ROOT/test/tools/replay_kitti.py" "$data" "$out/trajectory_kitti.txt" --timeout 30 \
+    | tee "$out/replay.txt"
+  call_service /laser_mapping/save_trajectory "{path: '$out/trajectory.tum', format: 'tum'}"
+  call_service /laser_mapping/save_map "{path: '$out/map.pcd'}"
+  stop_pipeline
+  eval_args=()
+  for candidate in poses_kitti_gt.txt poses.txt; do
+    if [ -f "$data/$candidate" ]; then
+      eval_args=(--gt "$data/$candidate")
+      # poses_kitti_gt.txt holds KITTI's camera-0 poses; poses.txt (aloam_sim) lidar poses.
+      [ "$candidate" = poses_kitti_gt.txt ] && [ -f "$data/calib.txt" ] && eval_args+=(--calib "$data/calib.txt")
+      # The official KITTI 00 ground truth disagrees with the scans over frames 0-5.
+      [ "$candidate" = poses_kitti_gt.txt ] && eval_args+=(--start 6)
+      break
+    fi
+  done
+  [ ${#eval_args[@]} -gt 0 ] && aloam_log "evaluating against ${eval_args[1]}" ||
+    aloam_log "no ground truth in $data: plotting the trajectory only"
+  python3 "$ALOAM_ROOT/scripts/demo_report.py" --out "$out" --estimate-kitti "$out/trajectory_kitti.txt" \
+    "${eval_args[@]}" --eval "$bin/aloam_eval" --segments 10,20,30,40,50,60,70 --frames-in "$frames" \
+    --title "$(basename "$data"), $sensor, live nodelet pipeline"
 fi
 
 cat <<MSG
 
 Results in $out
-  trajectory_kitti.txt  mapped lidar poses, KITTI 3x4 rows, relative to the first frame
-  trajectory.tum        the same in TUM format
-  map.pcd               the feature map (view with pcl_viewer)
-  summary.txt           timings and accuracy
+  trajectory_kitti.txt   mapped lidar poses (KITTI 3x4 rows, relative to the first mapped frame)
+  trajectory.tum         the same with stamps (TUM: stamp x y z qx qy qz qw)
+  map.pcd                the feature map (view with pcl_viewer)
+  trajectory.png         top view of the estimate over the ground truth, error over distance travelled
+  summary.txt            accuracy (aloam_eval), frames, path length
+  pipeline.log           output of roslaunch and the nodelets
 MSG

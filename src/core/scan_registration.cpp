@@ -104,7 +104,8 @@ void ScanRegistration::assignRingsAndTimes(const Cloud& cloud, bool has_ring, bo
     int ring = -1;
     if (ring_from_field)
     {
-      ring = in.ring < kMaxRings ? int(in.ring) : -1;
+      // Ouster drivers count rings from the top beam; the model turns them bottom-up.
+      ring = in.ring < kMaxRings ? config_.sensor.ringFromField(in.ring) : -1;
     }
     else
     {

@@ -74,11 +74,13 @@ std::optional<SensorModel> SensorModel::fromPreset(const std::string& name)
   {
     m = uniform(64, -22.5, 22.5);
     m.columns_ = 1024;
+    m.ring_field_from_top_ = true;
   }
   else if (name == "OS0_64")
   {
     m = uniform(64, -45.0, 45.0);
     m.columns_ = 1024;
+    m.ring_field_from_top_ = true;
   }
   else if (name == "OS1_128")
   {
@@ -144,6 +146,15 @@ int SensorModel::ringForElevation(double elevation_rad) const
   }
   const auto it = std::lower_bound(upper_bounds_deg_.begin(), upper_bounds_deg_.end(), deg);
   return static_cast<int>(it - upper_bounds_deg_.begin());
+}
+
+int SensorModel::ringFromField(int field_ring) const
+{
+  if (!ring_field_from_top_)
+  {
+    return field_ring;
+  }
+  return field_ring >= 0 && field_ring < numRings() ? numRings() - 1 - field_ring : -1;
 }
 
 }  // namespace aloam

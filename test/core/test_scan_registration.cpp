@@ -509,6 +509,28 @@ TEST(ScanRegistrationTest, FieldsArePassedThrough)
   EXPECT_DOUBLE_EQ(f.stamp, 1.0);
 }
 
+// An Ouster sweep as ouster_ros publishes it (ring = image row, row 0 = highest beam): with the OS1_64
+// preset every output point lands on the ring its elevation gives, counted from the lowest beam.
+TEST(ScanRegistrationTest, OusterRingFieldCountsFromTheTop)
+{
+  Sweep sweep = makeSweep("OS1_64");
+  const int rings = sweep.sensor.numRings();
+  for (Point& p : sweep.cloud.points)
+  {
+    p.ring = static_cast<std::uint16_t>(rings - 1 - p.ring);
+  }
+  const FeatureSet f = extract(sweep, true, true, configFor(sweep.sensor));
+  ASSERT_FALSE(f.full.empty());
+  int mismatched = 0;
+  for (const Point& p : f.full.points)
+  {
+    const double elevation = std::atan2(double(p.z), std::hypot(double(p.x), double(p.y)));
+    mismatched += int(p.ring) != sweep.sensor.ringForElevation(elevation) ? 1 : 0;
+  }
+  EXPECT_EQ(mismatched, 0) << "of " << f.full.size() << " points";
+  EXPECT_EQ(f.stats.rings, rings);
+}
+
 // Crafted bad points are counted: NaN/Inf in `invalid`, too close / too far in `out_of_range`, off-table
 // elevations (or ring fields past the limit) in `unassigned_ring`; none reaches the output.
 TEST(ScanRegistrationTest, StatsCountRejectedPoints)

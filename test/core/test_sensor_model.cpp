@@ -88,6 +88,29 @@ TEST(SensorModelTest, PresetBeamCounts)
   EXPECT_EQ(SensorModel::fromPreset("OS1_128")->numRings(), 128);
 }
 
+// Driver ring fields: Velodyne counts from the lowest beam (passed through), ouster_ros from the highest
+// (flipped into the model's bottom-up rings; values past the table fit no ring).
+TEST(SensorModelTest, RingFieldOrderFollowsTheDriver)
+{
+  for (const std::string name : { "VLP16", "HDL32", "HDL64", "VLP32C" })
+  {
+    const SensorModel model = *SensorModel::fromPreset(name);
+    EXPECT_FALSE(model.ringFieldFromTop()) << name;
+    EXPECT_EQ(model.ringFromField(0), 0) << name;
+    EXPECT_EQ(model.ringFromField(model.numRings() - 1), model.numRings() - 1) << name;
+  }
+  for (const std::string name : { "OS1_64", "OS0_64" })
+  {
+    const SensorModel model = *SensorModel::fromPreset(name);
+    EXPECT_TRUE(model.ringFieldFromTop()) << name;
+    EXPECT_EQ(model.ringFromField(0), 63) << name;
+    EXPECT_EQ(model.ringFromField(63), 0) << name;
+    EXPECT_EQ(model.ringFromField(20), 43) << name;
+    EXPECT_EQ(model.ringFromField(64), -1) << name;
+  }
+  EXPECT_FALSE(SensorModel::uniform(64, -22.5, 22.5).ringFieldFromTop());
+}
+
 // HDL64: the 64 beams map to 64 distinct rings 0..63, including 51-63 that A-LOAM's formula drops.
 TEST(SensorModelTest, Hdl64UsesAllSixtyFourRings)
 {

@@ -7,6 +7,7 @@
   aloam_nodelet/FeatureClouds and aloam_nodelet/OdometryFrame without the nodelets that normally make them
 - PointCloud2 packing, unpacking and validation, pose and trajectory helpers, aloam_eval parsing
 - a frame-by-frame replayer that publishes a sweep and waits for its answer on aft_mapped_to_init
+- aloam_sim sequences: generation, their ground truth, playback, evaluation and /diagnostics figures
 """
 import math
 import os
@@ -22,6 +23,7 @@ import numpy as np
 import rosgraph
 import rospkg
 import rospy
+from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import PointCloud2, PointField
 
@@ -674,3 +676,108 @@ def answered_matrices(answers):
     for a in answers:
         out.append(pose_to_matrix(a.pose.pose) if a is not None else (out[-1] if out else np.eye(4)))
     return out
+
+
+# --------------------------------------------------------------------------------------------------------
+# Simulated sequences (aloam_sim) played into a running pipeline
+
+
+def simulate(directory, name, sensor, scene, trajectory, duration, seed):
+    """Runs aloam_sim into DIRECTORY/NAME.bag; returns the bag path. Seeded, so every run is the same."""
+    bag = os.path.join(directory, name + ".bag")
+    proc = subprocess.run([devel_tool("aloam_sim"), "--sensor", sensor, "--scene", scene, "--trajectory", trajectory,
+                           "--duration", str(duration), "--seed", str(seed), "--bag", bag],
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, universal_newlines=True, timeout=300)
+    if proc.returncode != 0:
+        raise AssertionError("aloam_sim failed (%d):\n%s" % (proc.returncode, proc.stdout))
+    print(proc.stdout.strip().splitlines()[-4], flush=True)
+    return bag
+
+
+def bag_ground_truth(path, topic="ground_truth"):
+    """World <- sensor matrices of the bag's nav_msgs/Odometry ground truth, in recording order."""
+    import rosbag
+    with rosbag.Bag(path) as bag:
+        return [pose_to_matrix(msg.pose.pose) for _, msg, _ in bag.read_messages(topics=[topic])]
+
+
+def relative_to_first(matrices):
+    first_inv = np.linalg.inv(matrices[0])
+    return [first_inv @ m for m in matrices]
+
+
+def position_errors(estimate, truth):
+    """Per-frame position error (m) and heading error (deg) of two trajectories, both relative to their
+    first pose (no alignment: what a user sees against the truth)."""
+    est, gt = relative_to_first(estimate), relative_to_first(truth)
+    positions = np.array([np.linalg.norm(e[:3, 3] - g[:3, 3]) for e, g in zip(est, gt)])
+    angles = []
+    for e, g in zip(est, gt):
+        r = g[:3, :3].T @ e[:3, :3]
+        angles.append(math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(r) - 1.0) / 2.0)))))
+    return positions, np.array(angles)
+
+
+def path_length(matrices):
+    return float(sum(np.linalg.norm(b[:3, 3] - a[:3, 3]) for a, b in zip(matrices, matrices[1:])))
+
+
+class DiagnosticsWatcher:
+    """Keeps the newest /diagnostics status of each name as {key: value}, with its level and message."""
+
+    def __init__(self):
+        self._lock = threading.Lock()
+        self.latest = {}
+        self.sub = rospy.Subscriber("/diagnostics", DiagnosticArray, self._cb, queue_size=100)
+
+    def _cb(self, msg):
+        with self._lock:
+            for st in msg.status:
+                values = {kv.key: kv.value for kv in st.values}
+                self.latest[st.name] = (st.level, st.message, values)
+
+    def find(self, fragment):
+        """(level, message, values) of the newest status whose name ends with FRAGMENT, else None."""
+        with self._lock:
+            for name, status in self.latest.items():
+                if name.endswith(fragment):
+                    return status
+        return None
+
+    def wait_frames(self, fragment, frames, timeout=15.0):
+        """Waits for a status of FRAGMENT reporting at least FRAMES processed frames; returns it or None."""
+        deadline = time.time() + timeout
+        while time.time() < deadline and not rospy.is_shutdown():
+            status = self.find(fragment)
+            if status is not None and int(status[2].get("frames", "0")) >= frames:
+                return status
+            time.sleep(0.1)
+        return None
+
+
+def play_simulated(test, bag, ns="", timeout=20.0):
+    """Plays the clouds of BAG into the pipeline at NS frame by frame (each waits for its answer, so no
+    frame is skipped however slow the machine), asserting every answer is finite; returns
+    (answers, ground truth matrices, wall seconds)."""
+    clouds = read_bag_clouds(bag)
+    truth = bag_ground_truth(bag)
+    test.assertEqual(len(clouds), len(truth))
+    replayer = Replayer(ns=ns, timeout=timeout)
+    test.assertEqual(replayer.wait_ready(), [], "pipeline %s not wired" % (ns or "/"))
+    t0 = time.time()
+    answers = replayer.play(clouds, log_every=20)
+    elapsed = time.time() - t0
+    test.assertEqual([i for i, a in enumerate(answers) if a is None], [], "sweeps without aft_mapped_to_init")
+    test.assertEqual([i for i, a in enumerate(answers) if not pose_is_finite(a)], [], "non-finite poses")
+    replayer.answers.unregister()
+    return answers, truth, elapsed
+
+
+def evaluate(test, name, answers, truth, segments):
+    """aloam_eval of the answered poses against the truth (both written relative to their first pose, as
+    NAME.txt and NAME_gt.txt in the scratch directory)."""
+    trajectory, gt = test.path(name + ".txt"), test.path(name + "_gt.txt")
+    write_kitti(trajectory, answered_matrices(answers))
+    write_kitti(gt, truth)
+    metrics, report = run_eval(gt, trajectory, segments=segments)
+    return metrics, report

@@ -28,6 +28,12 @@ public:
   int columns() const { return columns_; }
   /// Nominal sweep period in seconds.
   double scanPeriod() const { return scan_period_; }
+  /// True when the driver's `ring` field counts beams from the top: ouster_ros publishes the image row,
+  /// row 0 being the highest beam. Velodyne drivers count from the lowest beam, as this model does.
+  bool ringFieldFromTop() const { return ring_field_from_top_; }
+  /// This model's ring (0 = lowest beam) of a driver's `ring` value; -1 when a top-down value lies
+  /// outside the table. Bottom-up values pass through unchanged.
+  int ringFromField(int field_ring) const;
 
   /// Ring of the nearest beam, or -1 when the elevation lies outside the table by more than half the
   /// spacing of the outermost beams.
@@ -40,6 +46,7 @@ private:
   double lowest_bound_deg_ = 0.0;
   int columns_ = 1800;
   double scan_period_ = 0.1;
+  bool ring_field_from_top_ = false;
 
   void finalize();
 };

@@ -1,0 +1,66 @@
+#!/usr/bin/env python3
+"""The degenerate scenes (sim_degenerate_playback.test): a 2.5 m wide corridor (walls, floor and ceiling
+leave the motion along it to a door or light every few metres) and an open field (flat ground, a few
+objects 8 m or more away), each a seeded 4 s straight line at 5 m/s with a VLP-16, played one sweep at a
+time into its own pipeline.
+
+LOAM cannot track these (the motion along the corridor and across the field is unobservable in most
+sweeps); what must hold is that it fails gracefully:
+- every sweep is answered and no pose is NaN or Inf,
+- the degeneracy is reported: odometry or mapping counts degraded frames in /diagnostics,
+- the divergence stays within a stated bound: position error against the ground truth (both relative to
+  the first sweep) and heading error at most the bounds below.
+"""
+import numpy as np
+import rospy
+import rostest
+
+import aloam_rostest_utils as u
+
+DURATION_S = 4.0
+SEED = 3
+# Measured through the pipeline (aloam_offline agrees): the corridor estimate falls behind along the
+# corridor, ending 9.43 m short after 19.5 m, heading error at most 8.0 deg; the field estimate ends
+# 16.21 m off, heading error at most 41.9 deg. Bounds with margin:
+#            max position error (m)   max heading error (deg)
+BOUNDS = {
+    "corridor": (15.0, 20.0),
+    "field": (25.0, 60.0),
+}
+
+
+class TestSimDegeneratePlayback(u.ScratchTestCase):
+
+    def check_scene(self, scene):
+        max_position, max_heading = BOUNDS[scene]
+        diagnostics = u.DiagnosticsWatcher()
+        bag = u.simulate(self.scratch, scene, "VLP16", scene, "straight", DURATION_S, SEED)
+        answers, truth, elapsed = u.play_simulated(self, bag, ns=scene)
+        positions, headings = u.position_errors(u.answered_matrices(answers), truth)
+        degraded = {}
+        for name in ("laser_odometry", "laser_mapping"):
+            status = diagnostics.wait_frames("/%s/%s" % (scene, name), len(answers))
+            self.assertIsNotNone(status, "no /diagnostics from %s/%s covering all frames" % (scene, name))
+            degraded[name] = int(status[2]["degraded frames"])
+        diagnostics.sub.unregister()
+        travelled = u.path_length(truth)
+        print("RESULT %s: %d sweeps in %.1f s over %.1f m; position error max %.2f m, end %.2f m (<= %.1f); "
+              "heading error max %.1f deg (<= %.0f); degraded frames: odometry %d, mapping %d"
+              % (scene, len(answers), elapsed, travelled, positions.max(), positions[-1], max_position,
+                 headings.max(), max_heading, degraded["laser_odometry"], degraded["laser_mapping"]), flush=True)
+        self.assertTrue(np.all(np.isfinite(positions)))
+        self.assertGreater(degraded["laser_odometry"] + degraded["laser_mapping"], 0,
+                           "degeneracy not reported in /diagnostics")
+        self.assertLessEqual(positions.max(), max_position)
+        self.assertLessEqual(headings.max(), max_heading)
+
+    def test_corridor(self):
+        self.check_scene("corridor")
+
+    def test_field(self):
+        self.check_scene("field")
+
+
+if __name__ == "__main__":
+    rospy.init_node("test_sim_degenerate_playback")
+    rostest.rosrun("aloam_nodelet", "sim_degenerate_playback", TestSimDegeneratePlayback)
