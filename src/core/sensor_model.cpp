@@ -86,6 +86,7 @@ std::optional<SensorModel> SensorModel::fromPreset(const std::string& name)
   {
     m = uniform(128, -22.5, 22.5);
     m.columns_ = 1024;
+    m.ring_field_from_top_ = true;
   }
   else
   {

@@ -299,6 +299,14 @@ Workload simulatedDrive(const std::string& sensor_name, int sweeps, const std::s
     scan.seed = kSimSeed * 100003u + static_cast<unsigned>(k);
     Sweep s;
     s.cloud = aloam::sim::scan(scene, sensor, [&](double t) { return pose_at(start + t); }, scan);
+    if (sensor.ringFieldFromTop())
+    {
+      // As ouster_ros numbers its rows: from the highest beam down.
+      for (aloam::Point& p : s.cloud.points)
+      {
+        p.ring = static_cast<std::uint16_t>(sensor.numRings() - 1 - p.ring);
+      }
+    }
     s.stamp = start;
     w.sweeps.push_back(std::move(s));
     w.truth.push_back(first_end.inverse() * pose_at(start + kSweepPeriod));

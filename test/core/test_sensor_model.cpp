@@ -99,14 +99,15 @@ TEST(SensorModelTest, RingFieldOrderFollowsTheDriver)
     EXPECT_EQ(model.ringFromField(0), 0) << name;
     EXPECT_EQ(model.ringFromField(model.numRings() - 1), model.numRings() - 1) << name;
   }
-  for (const std::string name : { "OS1_64", "OS0_64" })
+  for (const std::string name : { "OS1_64", "OS0_64", "OS1_128" })
   {
     const SensorModel model = *SensorModel::fromPreset(name);
+    const int top = model.numRings() - 1;
     EXPECT_TRUE(model.ringFieldFromTop()) << name;
-    EXPECT_EQ(model.ringFromField(0), 63) << name;
-    EXPECT_EQ(model.ringFromField(63), 0) << name;
-    EXPECT_EQ(model.ringFromField(20), 43) << name;
-    EXPECT_EQ(model.ringFromField(64), -1) << name;
+    EXPECT_EQ(model.ringFromField(0), top) << name;
+    EXPECT_EQ(model.ringFromField(top), 0) << name;
+    EXPECT_EQ(model.ringFromField(20), top - 20) << name;
+    EXPECT_EQ(model.ringFromField(top + 1), -1) << name;
   }
   EXPECT_FALSE(SensorModel::uniform(64, -22.5, 22.5).ringFieldFromTop());
 }
