@@ -6,8 +6,6 @@
 #include <stdexcept>
 #include <tuple>
 
-#include "aloam_nodelet/core/voxel_filter.h"
-
 namespace aloam
 {
 namespace
@@ -152,14 +150,14 @@ std::vector<CubeIndex> CubeMap::insert(const Cloud& world_points, bool corners, 
   return touched;
 }
 
-void CubeMap::reindex(Cloud& points, VoxelIndex& voxels, double leaf_size)
+void CubeMap::reindex(const Cloud& points, VoxelIndex& voxels, double leaf_size)
 {
   voxels.clear();
   if (!(leaf_size > 0.0))
   {
     return;
   }
-  voxelDownsampleInPlace(points, leaf_size);
+  // The first point of each voxel stands for it; the others stay as they are, unindexed.
   VoxelKey key;
   for (std::size_t i = 0; i < points.size(); ++i)
   {

@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <tuple>
 #include <vector>
 
 #include <Eigen/Eigenvalues>
@@ -15,9 +14,6 @@ namespace aloam
 {
 namespace
 {
-// Below this many points per thread, starting a thread costs more than it saves.
-constexpr int kMinPointsPerThread = 256;
-
 Eigen::Vector3d vec(const Point& p)
 {
   return Eigen::Vector3d(p.x, p.y, p.z);
@@ -64,56 +60,59 @@ void LaserMapping::reset()
   evicted_total_ = 0;
 }
 
+bool LaserMapping::fitNeighbours(const KdTree& tree, const Cloud& cloud, const Point& query, int k,
+                                 double max_sq_distance, Neighbourhood& fit)
+{
+  thread_local std::vector<float> sq_dist;
+  if (tree.nearestK(query, k, static_cast<float>(max_sq_distance), fit.index, sq_dist) < k)
+  {
+    return false;
+  }
+  Eigen::Matrix3d scatter;
+  centroidAndScatter(cloud, fit.index, fit.centroid, scatter);
+  // Closed-form 3x3 eigen-decomposition: several times faster than the iterative one, and as exact on
+  // these well-scaled scatter matrices. Eigenvalues ascend.
+  fit.eigen.computeDirect(scatter);
+  return true;
+}
+
 bool LaserMapping::matchEdge(const Point& p, const Pose& pose, LineMatch& match) const
 {
-  thread_local std::vector<int> index;
-  thread_local std::vector<float> sq_dist;
-  const int k = config_.line_neighbours;
-  const Point sel = transformPoint(pose, p);
-  if (corner_tree_.nearestK(sel, k, static_cast<float>(config_.line_max_sq_distance), index, sq_dist) < k)
+  thread_local Neighbourhood fit;
+  if (!fitNeighbours(corner_tree_, submap_corners_, transformPoint(pose, p), config_.line_neighbours,
+                     config_.line_max_sq_distance, fit))
   {
     return false;
   }
-  Eigen::Vector3d centroid;
-  Eigen::Matrix3d scatter;
-  centroidAndScatter(submap_corners_, index, centroid, scatter);
-  // Closed-form 3x3 eigen-decomposition: several times faster than the iterative one, and as exact on
-  // these well-scaled scatter matrices. Eigenvalues ascend: a line has one dominant direction.
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-  eig.computeDirect(scatter);
-  if (!(eig.eigenvalues()[2] > config_.line_eigen_ratio * eig.eigenvalues()[1]))
+  // A line has one dominant direction.
+  const Eigen::Vector3d& lambda = fit.eigen.eigenvalues();
+  if (!(lambda[2] > config_.line_eigen_ratio * lambda[1]))
   {
     return false;
   }
-  match = LineMatch{ vec(p), centroid, eig.eigenvectors().col(2) };
+  match = LineMatch{ vec(p), fit.centroid, fit.eigen.eigenvectors().col(2) };
   return true;
 }
 
 bool LaserMapping::matchPlane(const Point& p, const Pose& pose, PlaneMatch& match) const
 {
-  thread_local std::vector<int> index;
-  thread_local std::vector<float> sq_dist;
-  const int k = config_.plane_neighbours;
-  const Point sel = transformPoint(pose, p);
-  if (surf_tree_.nearestK(sel, k, static_cast<float>(config_.plane_max_sq_distance), index, sq_dist) < k)
+  thread_local Neighbourhood fit;
+  if (!fitNeighbours(surf_tree_, submap_surfs_, transformPoint(pose, p), config_.plane_neighbours,
+                     config_.plane_max_sq_distance, fit))
   {
     return false;
   }
-  Eigen::Vector3d centroid;
-  Eigen::Matrix3d scatter;
-  centroidAndScatter(submap_surfs_, index, centroid, scatter);
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-  eig.computeDirect(scatter);
   // The neighbours must spread in two directions: points along one scan line fit every plane through
   // that line, and their "normal" may tilt freely about it.
-  if (!(eig.eigenvalues()[1] > config_.plane_min_spread_ratio * eig.eigenvalues()[2]))
+  const Eigen::Vector3d& lambda = fit.eigen.eigenvalues();
+  if (!(lambda[1] > config_.plane_min_spread_ratio * lambda[2]))
   {
     return false;
   }
   // The normal is the direction of least spread; PCA works for planes through the origin too.
-  const Eigen::Vector3d n = eig.eigenvectors().col(0);
-  const double d = -n.dot(centroid);
-  for (const int i : index)
+  const Eigen::Vector3d n = fit.eigen.eigenvectors().col(0);
+  const double d = -n.dot(fit.centroid);
+  for (const int i : fit.index)
   {
     if (std::fabs(n.dot(vec(submap_surfs_.points[i])) + d) > config_.plane_max_distance)
     {
@@ -126,43 +125,21 @@ bool LaserMapping::matchPlane(const Point& p, const Pose& pose, PlaneMatch& matc
 
 int LaserMapping::solve(Pose& pose, MappingResult& result)
 {
-  MatchSlots slots;
-  slots.resize(corner_stack_.size(), surf_stack_.size());
-  const int n_corners = static_cast<int>(corner_stack_.size());
-  const int n_surfs = static_cast<int>(surf_stack_.size());
-
-  for (int outer = 0; outer < config_.outer_iterations; ++outer)
-  {
-    // The searches are independent per point: split them over the threads.
-    parallelChunks(n_corners + n_surfs, config_.threads, kMinPointsPerThread, [&](int begin, int end, int) {
-      for (int i = begin; i < end; ++i)
-      {
-        if (i < n_corners)
-        {
-          slots.line_found[i] = matchEdge(corner_stack_.points[i], pose, slots.lines[i]);
-        }
-        else
-        {
-          const int j = i - n_corners;
-          slots.plane_found[j] = matchPlane(surf_stack_.points[j], pose, slots.planes[j]);
-        }
-      }
-    });
-
-    PoseProblem problem(pose, config_.huber_delta);
-    std::tie(result.corner_matches, result.plane_matches) = problem.addMatches(slots);
-    if (result.corner_matches + result.plane_matches < config_.min_correspondences)
-    {
-      return result.corner_matches + result.plane_matches;
-    }
-    problem.solve(config_.max_iterations, config_.threads);
-    pose = problem.pose();
-    if (outer + 1 == config_.outer_iterations)
-    {
-      result.constraint = problem.constraintStrength(config_.constraint_lever_arm);
-    }
-  }
-  return result.corner_matches + result.plane_matches;
+  MatchSolveOptions options;
+  options.outer_iterations = config_.outer_iterations;
+  options.max_iterations = config_.max_iterations;
+  options.threads = config_.threads;
+  options.min_matches = config_.min_correspondences;
+  options.huber_delta = config_.huber_delta;
+  options.lever_arm = config_.constraint_lever_arm;
+  const MatchSolveResult r = matchAndSolve(
+      pose, corner_stack_.size(), surf_stack_.size(), options,
+      [&](int i, const Pose& at, LineMatch& slot) { return matchEdge(corner_stack_.points[i], at, slot); },
+      [&](int i, const Pose& at, PlaneMatch& slot) { return matchPlane(surf_stack_.points[i], at, slot); });
+  result.corner_matches = r.lines;
+  result.plane_matches = r.planes;
+  result.constraint = r.constraint;
+  return r.lines + r.planes;
 }
 
 void LaserMapping::insert(const Pose& pose)
@@ -209,14 +186,18 @@ MappingResult LaserMapping::registerFrame(const OdometryFrame& frame)
 
   corner_stack_.clear();
   surf_stack_.clear();
-  if (frame.corners)
-  {
-    voxelDownsample(*frame.corners, config_.corner_leaf_size, corner_stack_);
-  }
-  if (frame.surfs)
-  {
-    voxelDownsample(*frame.surfs, config_.surf_leaf_size, surf_stack_);
-  }
+  // The two downsamplings are independent: one thread each.
+  parallelChunks(2, config_.threads, 1, [&](int begin, int end, int) {
+    for (int layer = begin; layer < end; ++layer)
+    {
+      const auto& in = layer == 0 ? frame.corners : frame.surfs;
+      if (in)
+      {
+        voxelDownsample(*in, layer == 0 ? config_.corner_leaf_size : config_.surf_leaf_size,
+                        layer == 0 ? corner_stack_ : surf_stack_);
+      }
+    }
+  });
 
   // updateMap() prepared the submap around the previous pose; it serves unless the robot changed cube.
   const CubeIndex centre = map_.indexOf(pose.t);

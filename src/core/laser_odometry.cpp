@@ -2,19 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
-#include <tuple>
 
 
-#include "aloam_nodelet/core/parallel.h"
 #include "aloam_nodelet/core/pose_solver.h"
 
 namespace aloam
 {
 namespace
 {
-// Below this many points per thread, starting a thread costs more than it saves.
-constexpr int kMinPointsPerThread = 256;
-
 Eigen::Vector3d vec(const Point& p)
 {
   return Eigen::Vector3d(p.x, p.y, p.z);
@@ -170,46 +165,18 @@ bool LaserOdometry::matchPlane(const Point& p, const Pose& motion, PlaneMatch& m
 
 LaserOdometry::Matches LaserOdometry::solve(const Cloud& sharp, const Cloud& flat, Pose& motion) const
 {
-  Matches total;
-  MatchSlots slots;
-  slots.resize(sharp.size(), flat.size());
-  const int n_sharp = static_cast<int>(sharp.size());
-  const int n_flat = static_cast<int>(flat.size());
-
-  for (int outer = 0; outer < config_.outer_iterations; ++outer)
-  {
-    // The searches are independent per point: split them over the threads.
-    parallelChunks(n_sharp + n_flat, config_.threads, kMinPointsPerThread, [&](int begin, int end, int) {
-      for (int i = begin; i < end; ++i)
-      {
-        if (i < n_sharp)
-        {
-          slots.line_found[i] = matchEdge(sharp.points[i], motion, slots.lines[i]);
-        }
-        else
-        {
-          const int j = i - n_sharp;
-          slots.plane_found[j] = matchPlane(flat.points[j], motion, slots.planes[j]);
-        }
-      }
-    });
-
-    PoseProblem problem(motion, config_.huber_delta);
-    Matches m;
-    std::tie(m.corners, m.planes) = problem.addMatches(slots);
-    total = m;
-    if (m.corners + m.planes < config_.min_correspondences)
-    {
-      break;
-    }
-    problem.solve(config_.max_iterations, config_.threads);
-    motion = problem.pose();
-    if (outer + 1 == config_.outer_iterations)
-    {
-      total.constraint = problem.constraintStrength(config_.constraint_lever_arm);
-    }
-  }
-  return total;
+  MatchSolveOptions options;
+  options.outer_iterations = config_.outer_iterations;
+  options.max_iterations = config_.max_iterations;
+  options.threads = config_.threads;
+  options.min_matches = config_.min_correspondences;
+  options.huber_delta = config_.huber_delta;
+  options.lever_arm = config_.constraint_lever_arm;
+  const MatchSolveResult r = matchAndSolve(
+      motion, sharp.size(), flat.size(), options,
+      [&](int i, const Pose& m, LineMatch& slot) { return matchEdge(sharp.points[i], m, slot); },
+      [&](int i, const Pose& m, PlaneMatch& slot) { return matchPlane(flat.points[i], m, slot); });
+  return Matches{ r.lines, r.planes, r.constraint };
 }
 
 void deskewToSweepEnd(const Cloud& in, const Pose& motion, double scan_period, Cloud& out)

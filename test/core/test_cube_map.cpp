@@ -333,16 +333,28 @@ TEST(CubeMapTest, VoxelMergingMatchesDownsamplingAfterEveryBatch)
   expectPointsInTheirCubes(map);
 }
 
-// New leaf sizes downsample what is there; re-bucketing with leaves keeps every point.
-TEST(CubeMapTest, SetLeafSizesDownsamplesAndRebucketingKeepsPoints)
+// New leaf sizes keep every point and apply to later insertions; re-bucketing with leaves keeps every
+// point too.
+TEST(CubeMapTest, SetLeafSizesAndRebucketingKeepPoints)
 {
   CubeMap map(kCube);
   map.insertSurfs(randomCloud(20000, 20.0, 7));
   EXPECT_EQ(map.surfCount(), 20000u);
   map.setLeafSizes(0.4, 2.0);
-  Cloud reference = randomCloud(20000, 20.0, 7);
+  EXPECT_EQ(map.surfCount(), 20000u);
+  // The same points again: each lands in an indexed 2 m voxel and merges, nothing is added.
+  map.insertSurfs(randomCloud(20000, 20.0, 7));
+  EXPECT_EQ(map.surfCount(), 20000u);
+  // A new batch elsewhere is downsampled at 2 m.
+  Cloud far = randomCloud(5000, 20.0, 8);
+  for (Point& p : far.points)
+  {
+    p.x += 200.0f;
+  }
+  map.insertSurfs(far);
+  Cloud reference = far;
   voxelDownsampleInPlace(reference, 2.0);
-  EXPECT_EQ(map.surfCount(), reference.size());
+  EXPECT_EQ(map.surfCount(), 20000u + reference.size());
   const std::size_t surfs = map.surfCount();
   map.setCubeSize(7.3);  // 7.3 m is no multiple of 2 m: voxels straddle cubes, no point may merge
   EXPECT_EQ(map.surfCount(), surfs);

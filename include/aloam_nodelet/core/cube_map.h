@@ -72,7 +72,8 @@ public:
   double cubeSize() const { return cube_size_; }
   /// Changes the cube size and moves every point into its new cube; no point is lost.
   void setCubeSize(double cube_size);
-  /// Changes the leaf sizes and downsamples every cube to them.
+  /// Changes the leaf sizes: later insertions merge at the new sizes; the points already in the map stay
+  /// (none is lost, as with a new cube size).
   void setLeafSizes(double corner_leaf_size, double surf_leaf_size);
 
   /// Cube of a position. Non-finite positions map to the origin's cube (callers filter them first).
@@ -117,7 +118,7 @@ private:
   std::unordered_map<CubeIndex, Cube, CubeIndexHash> cubes_;
 
   std::vector<CubeIndex> insert(const Cloud& world_points, bool corners, bool merge = true);
-  static void reindex(Cloud& points, VoxelIndex& voxels, double leaf_size);
+  static void reindex(const Cloud& points, VoxelIndex& voxels, double leaf_size);
 };
 
 }  // namespace aloam

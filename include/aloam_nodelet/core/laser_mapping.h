@@ -2,6 +2,9 @@
 #pragma once
 
 #include <cstddef>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
 
 #include "aloam_nodelet/core/cube_map.h"
 #include "aloam_nodelet/core/kd_tree.h"
@@ -111,7 +114,17 @@ private:
   Pose pending_pose_;
   bool pending_insert_ = false;
 
+  /// The k nearest map points of a query within a radius, their centroid and principal axes.
+  struct Neighbourhood
+  {
+    std::vector<int> index;
+    Eigen::Vector3d centroid;
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
+  };
+
   int solve(Pose& pose, MappingResult& result);
+  static bool fitNeighbours(const KdTree& tree, const Cloud& cloud, const Point& query, int k,
+                            double max_sq_distance, Neighbourhood& fit);
   bool matchEdge(const Point& p, const Pose& pose, LineMatch& match) const;
   bool matchPlane(const Point& p, const Pose& pose, PlaneMatch& match) const;
   void insert(const Pose& pose);

@@ -7,6 +7,7 @@
 
 #include <ceres/ceres.h>
 
+#include "aloam_nodelet/core/parallel.h"
 #include "aloam_nodelet/core/pose.h"
 
 namespace aloam
@@ -66,5 +67,69 @@ private:
   std::unique_ptr<ceres::LossFunction> loss_;
   ceres::Problem problem_;
 };
+
+/// How the matching stages alternate correspondence search and solving.
+struct MatchSolveOptions
+{
+  int outer_iterations = 2;    ///< searches, each followed by a solve
+  int max_iterations = 4;      ///< solver iterations per solve
+  int threads = 1;             ///< threads for the search and the solver's evaluation
+  int min_matches = 10;        ///< fewer matches: stop without solving
+  double huber_delta = 0.1;
+  double lever_arm = 10.0;     ///< for the constraint strength of the last solve
+};
+
+struct MatchSolveResult
+{
+  int lines = 0;  ///< matches of the last search
+  int planes = 0;
+  double constraint = 0.0;  ///< PoseProblem::constraintStrength after the last solve (0 if none)
+};
+
+/// The loop of both matching stages: `outer_iterations` times, match every point from the current
+/// `pose` (match_line(i, pose, slot) for i < line_points, match_plane likewise; independent per point,
+/// so split over the threads), then solve from `pose`. `pose` ends at the last solution.
+template <typename MatchLine, typename MatchPlane>
+MatchSolveResult matchAndSolve(Pose& pose, std::size_t line_points, std::size_t plane_points,
+                               const MatchSolveOptions& options, MatchLine&& match_line, MatchPlane&& match_plane)
+{
+  // Below this many points per thread, starting a thread costs more than it saves.
+  constexpr int kMinPointsPerThread = 256;
+  MatchSlots slots;
+  slots.resize(line_points, plane_points);
+  const int n_lines = static_cast<int>(line_points);
+  const int n_all = n_lines + static_cast<int>(plane_points);
+  MatchSolveResult result;
+  for (int outer = 0; outer < options.outer_iterations; ++outer)
+  {
+    parallelChunks(n_all, options.threads, kMinPointsPerThread, [&](int begin, int end, int) {
+      for (int i = begin; i < end; ++i)
+      {
+        if (i < n_lines)
+        {
+          slots.line_found[i] = match_line(i, pose, slots.lines[i]);
+        }
+        else
+        {
+          slots.plane_found[i - n_lines] = match_plane(i - n_lines, pose, slots.planes[i - n_lines]);
+        }
+      }
+    });
+    PoseProblem problem(pose, options.huber_delta);
+    const auto [lines, planes] = problem.addMatches(slots);
+    result = MatchSolveResult{ lines, planes, 0.0 };
+    if (lines + planes < options.min_matches)
+    {
+      break;
+    }
+    problem.solve(options.max_iterations, options.threads);
+    pose = problem.pose();
+    if (outer + 1 == options.outer_iterations)
+    {
+      result.constraint = problem.constraintStrength(options.lever_arm);
+    }
+  }
+  return result;
+}
 
 }  // namespace aloam
