@@ -125,13 +125,7 @@ bool LaserMapping::matchPlane(const Point& p, const Pose& pose, PlaneMatch& matc
 
 int LaserMapping::solve(Pose& pose, MappingResult& result)
 {
-  MatchSolveOptions options;
-  options.outer_iterations = config_.outer_iterations;
-  options.max_iterations = config_.max_iterations;
-  options.threads = config_.threads;
-  options.min_matches = config_.min_correspondences;
-  options.huber_delta = config_.huber_delta;
-  options.lever_arm = config_.constraint_lever_arm;
+  const MatchSolveOptions options = matchSolveOptionsOf(config_);
   const MatchSolveResult r = matchAndSolve(
       pose, corner_stack_.size(), surf_stack_.size(), options,
       [&](int i, const Pose& at, LineMatch& slot) { return matchEdge(corner_stack_.points[i], at, slot); },

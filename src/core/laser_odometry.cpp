@@ -165,13 +165,7 @@ bool LaserOdometry::matchPlane(const Point& p, const Pose& motion, PlaneMatch& m
 
 LaserOdometry::Matches LaserOdometry::solve(const Cloud& sharp, const Cloud& flat, Pose& motion) const
 {
-  MatchSolveOptions options;
-  options.outer_iterations = config_.outer_iterations;
-  options.max_iterations = config_.max_iterations;
-  options.threads = config_.threads;
-  options.min_matches = config_.min_correspondences;
-  options.huber_delta = config_.huber_delta;
-  options.lever_arm = config_.constraint_lever_arm;
+  const MatchSolveOptions options = matchSolveOptionsOf(config_);
   const MatchSolveResult r = matchAndSolve(
       motion, sharp.size(), flat.size(), options,
       [&](int i, const Pose& m, LineMatch& slot) { return matchEdge(sharp.points[i], m, slot); },

@@ -79,6 +79,20 @@ struct MatchSolveOptions
   double lever_arm = 10.0;     ///< for the constraint strength of the last solve
 };
 
+/// The options of a stage whose configuration names them alike (LaserOdometryConfig, LaserMappingConfig).
+template <typename StageConfig>
+MatchSolveOptions matchSolveOptionsOf(const StageConfig& config)
+{
+  MatchSolveOptions options;
+  options.outer_iterations = config.outer_iterations;
+  options.max_iterations = config.max_iterations;
+  options.threads = config.threads;
+  options.min_matches = config.min_correspondences;
+  options.huber_delta = config.huber_delta;
+  options.lever_arm = config.constraint_lever_arm;
+  return options;
+}
+
 struct MatchSolveResult
 {
   int lines = 0;  ///< matches of the last search
