@@ -60,15 +60,11 @@ ScanRegistration::ScanRegistration(ScanRegistrationConfig config) : config_(std:
 {
 }
 
-void ScanRegistration::assignRingsAndTimes(const Cloud& cloud, bool has_ring, bool has_time,
-                                           RegistrationStats& stats)
+void ScanRegistration::bucketByRing(const Cloud& cloud, int begin, int end, bool ring_from_field,
+                                    bool time_from_field, Worker& worker)
 {
-  const bool ring_from_field = has_ring && config_.use_ring_field;
-  const bool time_from_field = has_time && config_.use_time_field;
-  const int model_rings = config_.sensor.numRings();
-
-  auto& rings = scratch_.rings;
-  auto& azimuths = scratch_.azimuths;
+  auto& rings = worker.rings;
+  auto& azimuths = worker.azimuths;
   for (auto& r : rings)
   {
     r.clear();
@@ -77,18 +73,19 @@ void ScanRegistration::assignRingsAndTimes(const Cloud& cloud, bool has_ring, bo
   {
     a.clear();
   }
+  const int model_rings = config_.sensor.numRings();
   if (!ring_from_field && static_cast<int>(rings.size()) < model_rings)
   {
     rings.resize(static_cast<std::size_t>(model_rings));
   }
-
+  RegistrationStats& stats = worker.stats;
+  worker.have_start = false;
   const double min_sq = config_.minimum_range * config_.minimum_range;
   const double max_sq = config_.maximum_range * config_.maximum_range;
-  bool have_start = false;
-  double start_azimuth = 0.0;
 
-  for (const Point& in : cloud.points)
+  for (int index = begin; index < end; ++index)
   {
+    const Point& in = cloud.points[index];
     if (!isFinite(in))
     {
       ++stats.invalid;
@@ -130,10 +127,10 @@ void ScanRegistration::assignRingsAndTimes(const Cloud& cloud, bool has_ring, bo
     else
     {
       const double azimuth = std::atan2(double(in.y), double(in.x));
-      if (!have_start)
+      if (!worker.have_start)
       {
-        have_start = true;
-        start_azimuth = azimuth;
+        worker.have_start = true;
+        worker.start_azimuth = azimuth;
       }
       if (azimuths.size() < rings.size())
       {
@@ -143,41 +140,69 @@ void ScanRegistration::assignRingsAndTimes(const Cloud& cloud, bool has_ring, bo
     }
     rings[static_cast<std::size_t>(ring)].push_back(p);
   }
-  if (!time_from_field)
-  {
-    timesFromAzimuth(start_azimuth);
-  }
 }
 
-void ScanRegistration::timesFromAzimuth(double start_azimuth)
+void ScanRegistration::gatherRings(bool time_from_field, Cloud& full, std::vector<int>& ring_begin)
+{
+  std::size_t rings = 0, total = 0;
+  for (const Worker& worker : workers_)
+  {
+    rings = std::max(rings, worker.rings.size());
+    for (const auto& r : worker.rings)
+    {
+      total += r.size();
+    }
+  }
+  full.points.reserve(total);
+  scratch_.azimuths.clear();
+  ring_begin.clear();
+  // Ring by ring, each worker's share in input order: the firing order within every ring is kept.
+  for (std::size_t r = 0; r < rings; ++r)
+  {
+    ring_begin.push_back(static_cast<int>(full.size()));
+    for (const Worker& worker : workers_)
+    {
+      if (r < worker.rings.size())
+      {
+        full.points.insert(full.points.end(), worker.rings[r].begin(), worker.rings[r].end());
+      }
+      if (!time_from_field && r < worker.azimuths.size())
+      {
+        scratch_.azimuths.insert(scratch_.azimuths.end(), worker.azimuths[r].begin(), worker.azimuths[r].end());
+      }
+    }
+  }
+  ring_begin.push_back(static_cast<int>(full.size()));
+  setUnorganized(full);
+}
+
+void ScanRegistration::timesFromAzimuth(double start_azimuth, const std::vector<int>& ring_begin, Cloud& full)
 {
   // Spin direction from the data: the sum of azimuth steps along the rings (points are in firing order
   // within a ring). Velodyne drivers spin clockwise seen from above; KITTI stores its sweeps the other way.
-  const auto& azimuths = scratch_.azimuths;
+  const auto& azimuth = scratch_.azimuths;
   double turn = 0.0;
-  for (const auto& a : azimuths)
+  for (std::size_t r = 0; r + 1 < ring_begin.size(); ++r)
   {
-    for (std::size_t k = 1; k < a.size(); ++k)
+    for (int k = ring_begin[r] + 1; k < ring_begin[r + 1]; ++k)
     {
-      turn += wrapFrom(double(a[k]) - a[k - 1], -M_PI);
+      turn += wrapFrom(double(azimuth[k]) - azimuth[k - 1], -M_PI);
     }
   }
   const double direction = turn >= 0.0 ? 1.0 : -1.0;
 
-  for (std::size_t r = 0; r < azimuths.size() && r < scratch_.rings.size(); ++r)
+  for (std::size_t r = 0; r + 1 < ring_begin.size(); ++r)
   {
-    const auto& a = azimuths[r];
-    auto& points = scratch_.rings[r];
     double progress = 0.0;  // radians turned since the sweep start
-    for (std::size_t k = 0; k < a.size(); ++k)
+    for (int k = ring_begin[r]; k < ring_begin[r + 1]; ++k)
     {
-      if (k == 0)
+      if (k == ring_begin[r])
       {
-        progress = wrapFrom(direction * (double(a[0]) - start_azimuth), -kRingStartLead);
+        progress = wrapFrom(direction * (double(azimuth[k]) - start_azimuth), -kRingStartLead);
       }
       else
       {
-        progress += direction * wrapFrom(double(a[k]) - a[k - 1], -M_PI);
+        progress += direction * wrapFrom(double(azimuth[k]) - azimuth[k - 1], -M_PI);
         // Past a full turn: the ring's returns came in two blocks (two lasers that share a nominal
         // ring, as in KITTI's calibrated HDL-64); the second block starts over.
         if (progress > kTwoPi + kFullTurnMargin)
@@ -186,7 +211,7 @@ void ScanRegistration::timesFromAzimuth(double start_azimuth)
         }
       }
       const double fraction = std::clamp(progress / kTwoPi, 0.0, 1.0);
-      points[k].time = static_cast<float>(fraction * config_.scan_period);
+      full.points[k].time = static_cast<float>(fraction * config_.scan_period);
     }
   }
 }
@@ -421,28 +446,44 @@ bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, 
   RegistrationStats& stats = out.stats;
   stats.points_in = cloud.size();
 
-  assignRingsAndTimes(cloud, has_ring, has_time, stats);
-
-  // Concatenate the rings; remember where each begins.
-  std::size_t total = 0;
-  for (const auto& r : scratch_.rings)
+  // Sort the points into rings, the input split over the threads in contiguous blocks; the blocks then
+  // join ring by ring in input order, as one thread would have produced them.
+  const bool ring_from_field = has_ring && config_.use_ring_field;
+  const bool time_from_field = has_time && config_.use_time_field;
+  const int parts = cloud.size() < static_cast<std::size_t>(kMinPointsForThreads)
+                        ? 1
+                        : std::clamp(config_.threads, 1, kMaxThreads);
+  workers_.resize(static_cast<std::size_t>(parts));
+  for (Worker& worker : workers_)
   {
-    total += r.size();
+    worker.stats = RegistrationStats{};
   }
-  out.full.points.reserve(total);
-  std::vector<int> ring_begin;
-  ring_begin.reserve(scratch_.rings.size() + 1);
-  for (const auto& r : scratch_.rings)
+  parallelChunks(static_cast<int>(cloud.size()), parts, 1, [&](int begin, int end, int part) {
+    bucketByRing(cloud, begin, end, ring_from_field, time_from_field, workers_[part]);
+  });
+  double start_azimuth = 0.0;
+  bool have_start = false;
+  for (const Worker& worker : workers_)
   {
-    ring_begin.push_back(static_cast<int>(out.full.size()));
-    out.full.points.insert(out.full.points.end(), r.begin(), r.end());
-    if (!r.empty())
+    stats.invalid += worker.stats.invalid;
+    stats.out_of_range += worker.stats.out_of_range;
+    stats.unassigned_ring += worker.stats.unassigned_ring;
+    if (!have_start && worker.have_start)
     {
-      ++stats.rings;
+      have_start = true;
+      start_azimuth = worker.start_azimuth;
     }
   }
-  ring_begin.push_back(static_cast<int>(out.full.size()));
-  setUnorganized(out.full);
+  std::vector<int> ring_begin;
+  gatherRings(time_from_field, out.full, ring_begin);
+  if (!time_from_field)
+  {
+    timesFromAzimuth(start_azimuth, ring_begin, out.full);
+  }
+  for (std::size_t r = 0; r + 1 < ring_begin.size(); ++r)
+  {
+    stats.rings += ring_begin[r + 1] > ring_begin[r] ? 1 : 0;
+  }
   stats.points_used = out.full.size();
 
   const int w = config_.curvature_half_window;
@@ -467,7 +508,6 @@ bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, 
   // Rings are independent from here on: split them over the threads in contiguous blocks of about
   // equal point counts, then concatenate the blocks in ring order (the result does not depend on the split).
   const int rings = static_cast<int>(ring_begin.size()) - 1;
-  const int parts = n < kMinPointsForThreads ? 1 : std::clamp(config_.threads, 1, kMaxThreads);
   std::vector<int> split(static_cast<std::size_t>(parts) + 1, rings);
   split[0] = 0;
   for (int part = 1, r = 0; part < parts; ++part)
@@ -478,7 +518,6 @@ bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, 
     }
     split[part] = r;
   }
-  workers_.resize(static_cast<std::size_t>(parts));
   for (Worker& worker : workers_)
   {
     for (Cloud* c : { &worker.features.sharp, &worker.features.less_sharp, &worker.features.flat,

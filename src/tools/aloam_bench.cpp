@@ -15,6 +15,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <numeric>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -151,7 +152,8 @@ void printStage(const char* name, const StageSeries& s)
 /// and prints the figures.
 void runWorkload(const Workload& w)
 {
-  std::printf("\n== %s: %zu sweeps\n", w.name.c_str(), w.sweeps.size());
+  std::printf("\n== %s: %zu sweeps (RSS %.1f MB with the sweeps loaded)\n", w.name.c_str(), w.sweeps.size(),
+              residentMb().first);
   aloam::ScanRegistration registration(w.config.registration);
   aloam::LaserOdometry odometry(w.config.odometry);
   aloam::LaserMapping mapping(w.config.mapping);
@@ -161,6 +163,7 @@ void runWorkload(const Workload& w)
   const std::size_t checkpoints = 10;
   const std::size_t every = std::max<std::size_t>(1, w.sweeps.size() / checkpoints);
   std::vector<std::string> growth;
+  std::size_t block_start = 0;
   const double start = nowMs();
   for (std::size_t i = 0; i < w.sweeps.size(); ++i)
   {
@@ -193,10 +196,18 @@ void runWorkload(const Workload& w)
 
     if ((i + 1) % every == 0 || i + 1 == w.sweeps.size())
     {
-      char line[160];
-      std::snprintf(line, sizeof(line), "    sweep %6zu  map %8zu points in %4zu cubes  RSS %7.1f MB", i + 1,
-                    result.map_corners + result.map_surfs, result.cubes, residentMb().first);
+      // Cost against map extent: the block's mean times beside the map size.
+      const auto block_mean = [&](const std::vector<double>& v) {
+        const std::size_t n = std::min<std::size_t>(v.size(), i + 1 - block_start);
+        return n == 0 ? 0.0 : std::accumulate(v.end() - long(n), v.end(), 0.0) / double(n);
+      };
+      char line[200];
+      std::snprintf(line, sizeof(line),
+                    "    sweep %6zu  map %8zu points in %4zu cubes  RSS %7.1f MB  mapping %5.1f ms  update %5.1f ms",
+                    i + 1, result.map_corners + result.map_surfs, result.cubes, residentMb().first,
+                    block_mean(map.wall), block_mean(update.wall));
       growth.emplace_back(line);
+      block_start = i + 1;
     }
   }
   const double seconds = (nowMs() - start) / 1e3;

@@ -57,17 +57,20 @@ public:
 private:
   struct Scratch
   {
-    std::vector<std::vector<Point>> rings;
-    std::vector<std::vector<float>> azimuths;  // atan2(y, x) of each ring's points, without a time field
+    std::vector<float> azimuths;  // atan2(y, x) of each point of the full cloud, without a time field
     // Per point of the full cloud (each ring touches only its own points, so threads share these).
     std::vector<float> curvature;
     std::vector<float> range;
     std::vector<std::uint8_t> picked;
     std::vector<std::int8_t> label;
   };
-  /// What one thread needs and produces for its rings.
+  /// What one thread needs and produces: its block of the input sorted into rings, then its rings' features.
   struct Worker
   {
+    std::vector<std::vector<Point>> rings;
+    std::vector<std::vector<float>> azimuths;
+    bool have_start = false;  // the block's first azimuth, for the sweep's start without a time field
+    double start_azimuth = 0.0;
     std::vector<int> candidates;
     Cloud less_flat_ring;
     FeatureSet features;  // sharp, less_sharp, flat, less_flat of the worker's rings
@@ -78,8 +81,10 @@ private:
   Scratch scratch_;
   std::vector<Worker> workers_;
 
-  void assignRingsAndTimes(const Cloud& cloud, bool has_ring, bool has_time, RegistrationStats& stats);
-  void timesFromAzimuth(double start_azimuth);
+  void bucketByRing(const Cloud& cloud, int begin, int end, bool ring_from_field, bool time_from_field,
+                    Worker& worker);
+  void gatherRings(bool time_from_field, Cloud& full, std::vector<int>& ring_begin);
+  void timesFromAzimuth(double start_azimuth, const std::vector<int>& ring_begin, Cloud& full);
   void extractRings(const Cloud& full, const std::vector<int>& ring_begin, int first_ring, int end_ring,
                     Worker& worker);
   void markUnreliable(const Cloud& full, int begin, int end, RegistrationStats& stats);
