@@ -176,14 +176,30 @@ LaserOdometry::Matches LaserOdometry::solve(const Cloud& sharp, const Cloud& fla
 void deskewToSweepEnd(const Cloud& in, const Pose& motion, double scan_period, Cloud& out)
 {
   const double inv_period = scan_period > 0.0 ? 1.0 / scan_period : 0.0;
+  // The pose at fraction s of the sweep is a rotation by s * angle about the motion's fixed axis and a
+  // translation s * t (slerp from the identity, at constant velocity): one sincos per point instead of
+  // a general slerp.
+  const Eigen::AngleAxisd rotation(motion.q.normalized());
+  const double half_angle = 0.5 * rotation.angle();
+  const Eigen::Vector3d axis = rotation.axis();
   const Pose end_from_start = motion.inverse();
+  const Eigen::Matrix3d end_rotation = end_from_start.q.toRotationMatrix();
   out.header = in.header;
   out.points.clear();
   out.points.reserve(in.size());
   for (const Point& p : in.points)
   {
     const double s = std::clamp(p.time * inv_period, 0.0, 1.0);
-    out.points.push_back(transformPoint(end_from_start * motion.interpolated(s), p));
+    const double sin_half = std::sin(s * half_angle);
+    const Eigen::Quaterniond q_s(std::cos(s * half_angle), sin_half * axis.x(), sin_half * axis.y(),
+                                 sin_half * axis.z());
+    const Eigen::Vector3d at_start = q_s * Eigen::Vector3d(p.x, p.y, p.z) + s * motion.t;
+    const Eigen::Vector3d at_end = end_rotation * at_start + end_from_start.t;
+    Point q = p;
+    q.x = static_cast<float>(at_end.x());
+    q.y = static_cast<float>(at_end.y());
+    q.z = static_cast<float>(at_end.z());
+    out.points.push_back(q);
   }
   setUnorganized(out);
 }

@@ -327,4 +327,36 @@ TEST(LaserOdometryTest, FrameSharesCloudsAndResetRestarts)
   EXPECT_EQ(again.status, OdometryStatus::kInitialized);
 }
 
+// deskewToSweepEnd moves each point by the pose composition it stands for: end <- start, then the
+// constant-velocity pose at the point's fraction of the sweep (slerp from the identity); times outside
+// the sweep clamp to its ends.
+TEST(LaserOdometryTest, DeskewMatchesPoseComposition)
+{
+  constexpr double kPeriod = 0.1;
+  const Pose motion(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.2, -0.4, 1.0).normalized())),
+                    Eigen::Vector3d(1.2, -0.3, 0.05));
+  Cloud in;
+  for (int i = 0; i < 200; ++i)
+  {
+    Point p = makePoint(10.0 * std::cos(0.1 * i), 7.0 * std::sin(0.37 * i), 0.02 * i - 2.0);
+    p.time = static_cast<float>(kPeriod * (i - 10) / 180.0);  // a few before 0 and after the period
+    in.push_back(p);
+  }
+  Cloud out;
+  deskewToSweepEnd(in, motion, kPeriod, out);
+  ASSERT_EQ(out.size(), in.size());
+  for (std::size_t i = 0; i < in.size(); ++i)
+  {
+    const double s = std::clamp(in.points[i].time / kPeriod, 0.0, 1.0);
+    const Point expected = transformPoint(motion.inverse() * motion.interpolated(s), in.points[i]);
+    EXPECT_NEAR(out.points[i].x, expected.x, 1e-5);
+    EXPECT_NEAR(out.points[i].y, expected.y, 1e-5);
+    EXPECT_NEAR(out.points[i].z, expected.z, 1e-5);
+    EXPECT_EQ(out.points[i].time, in.points[i].time);
+  }
+  // Identity motion leaves the points where they are.
+  deskewToSweepEnd(in, Pose(), kPeriod, out);
+  EXPECT_NEAR(out.points[7].x, in.points[7].x, 1e-6);
+}
+
 }  // namespace aloam
