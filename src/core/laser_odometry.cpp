@@ -236,6 +236,8 @@ OdometryFrame LaserOdometry::process(const std::shared_ptr<const FeatureSet>& fe
 {
   OdometryFrame frame;
   frame.stamp = features->stamp;
+  const bool motion_unknown = motion_unknown_;
+  motion_unknown_ = false;
 
   if (!initialized())
   {
@@ -283,9 +285,16 @@ OdometryFrame LaserOdometry::process(const std::shared_ptr<const FeatureSet>& fe
 
   frame.pose = pose_;
   frame.motion = motion_;
-  frame.corners = toSweepEnd(features, features->less_sharp, motion_);
-  frame.surfs = toSweepEnd(features, features->less_flat, motion_);
-  frame.full = toSweepEnd(features, features->full, motion_);
+  // After a gap the solved motion spans the gap, not this sweep: no deskewing with it, no prior from it.
+  const Pose sweep_motion = motion_unknown ? Pose() : motion_;
+  frame.distorted = frame.distorted || (motion_unknown && config_.deskew && features->has_time);
+  frame.corners = toSweepEnd(features, features->less_sharp, sweep_motion);
+  frame.surfs = toSweepEnd(features, features->less_flat, sweep_motion);
+  frame.full = toSweepEnd(features, features->full, sweep_motion);
+  if (motion_unknown)
+  {
+    motion_ = Pose();
+  }
   keepAsLast(frame.corners, frame.surfs);
   last_distorted_ = frame.distorted;
   return frame;

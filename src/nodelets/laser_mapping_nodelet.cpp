@@ -73,7 +73,7 @@ private:
   aloam::ros_io::StampedOdometryFrame::ConstPtr pending_;
   bool reset_requested_ = false;
   std::size_t skipped_ = 0;
-  TimeJumpDetector time_jump_;
+  StampGuard stamps_;
   std::atomic<bool> stop_{ false };
   std::thread worker_;
 
@@ -136,6 +136,7 @@ void LaserMappingNodelet::onInit()
   map_publish_period_ = boundedParam(pnh, name, "map_publish_period", map_publish_period_, 0.0, 3600.0);
   surround_every_ = boundedParam(pnh, name, "surround_every", surround_every_, 1, 1000);
   mapping_ = std::make_unique<aloam::LaserMapping>();
+  stamps_.setConfig(stampCheckParams(pnh, name));
   path_.header.frame_id = map_frame_;
 
   warnOutOfRange<LaserMappingConfig>(pnh, name);
@@ -161,6 +162,7 @@ void LaserMappingNodelet::onInit()
     {
       std::lock_guard<std::mutex> lock(queue_mutex_);
       s.add("frames skipped (mapping behind)", skipped_);
+      stamps_.report(s);
     }
     std::lock_guard<std::mutex> lock(core_mutex_);
     s.add("edge matches", last_result_.corner_matches);
@@ -182,13 +184,23 @@ void LaserMappingNodelet::onInit()
 
 void LaserMappingNodelet::frameCb(const aloam::ros_io::StampedOdometryFrame::ConstPtr& msg)
 {
+  // A gap needs nothing here: the correction (map <- odometry world) is a frame offset, not a velocity, so
+  // applying it after a gap extrapolates nothing; odometry restarts its own motion prior.
   bool reset_pending = false;
   {
     std::lock_guard<std::mutex> lock(queue_mutex_);
-    double jump = 0.0;
-    if (time_jump_.jumpedBack(msg->header.stamp, jump))
+    const aloam::StampVerdict verdict = stamps_.check(msg->header.stamp);
+    if (!aloam::isTaken(verdict))
     {
-      NODELET_WARN("time jumped back %.3f s (looping bag?): map reset", jump);
+      if (stamps_.warningDue(verdict))
+      {
+        NODELET_WARN_STREAM(stamps_.dropMessage(verdict, "laser_odom_frame", msg->header.stamp));
+      }
+      return;
+    }
+    if (verdict == aloam::StampVerdict::kJumpedBack)
+    {
+      NODELET_WARN("time jumped back %.3f s (looping bag?): map reset", -stamps_.lastStep());
       reset_requested_ = true;
     }
     reset_pending = reset_requested_;

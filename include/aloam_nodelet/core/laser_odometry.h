@@ -68,8 +68,14 @@ public:
 
   /// Forgets the previous sweep and the pose; the next sweep starts a new trajectory at identity.
   void reset();
-  /// Forgets the motion prior only (e.g. after a gap in the data).
-  void resetMotionPrior() { motion_ = Pose(); }
+  /// Forgets the motion prior (after a gap in the data): the next sweep is solved from an identity prior and
+  /// not deskewed, since the motion across the gap is no per-sweep velocity; nor is it the prior of the sweep
+  /// after. The pose and the previous sweep are kept.
+  void resetMotionPrior()
+  {
+    motion_ = Pose();
+    motion_unknown_ = true;
+  }
   bool initialized() const { return last_corners_ != nullptr; }
   const Pose& pose() const { return pose_; }
 
@@ -87,6 +93,7 @@ private:
   std::shared_ptr<const Cloud> last_corners_;
   std::shared_ptr<const Cloud> last_surfs_;
   bool last_distorted_ = false;  // the previous sweep's clouds could not be deskewed
+  bool motion_unknown_ = false;  // resetMotionPrior() was called: no velocity for the next sweep
   std::vector<int> last_corner_ring_begin_;
   std::vector<int> last_surf_ring_begin_;
   pcl::KdTreeFLANN<Point> corner_tree_;
