@@ -72,6 +72,8 @@ private:
   std::condition_variable queue_cv_;
   aloam::ros_io::StampedOdometryFrame::ConstPtr pending_;
   bool reset_requested_ = false;
+  bool odometry_running_ = false;  // a frame of the current odometry trajectory was received
+  std::size_t odometry_restarts_ = 0;
   std::size_t skipped_ = 0;
   StampGuard stamps_;
   std::atomic<bool> stop_{ false };
@@ -163,6 +165,7 @@ void LaserMappingNodelet::onInit()
       std::lock_guard<std::mutex> lock(queue_mutex_);
       s.add("frames skipped (mapping behind)", skipped_);
       stamps_.report(s);
+      s.add("odometry restarts (map reset)", odometry_restarts_);
     }
     std::lock_guard<std::mutex> lock(core_mutex_);
     s.add("edge matches", last_result_.corner_matches);
@@ -203,6 +206,16 @@ void LaserMappingNodelet::frameCb(const aloam::ros_io::StampedOdometryFrame::Con
       NODELET_WARN("time jumped back %.3f s (looping bag?): map reset", -stamps_.lastStep());
       reset_requested_ = true;
     }
+    else if (msg->frame.status == aloam::OdometryStatus::kInitialized && odometry_running_)
+    {
+      // Odometry started a new trajectory at identity (its reset service, a reload, a restarted manager)
+      // while the stamps went on: its poses no longer fit this map, and building on would corrupt it.
+      ++odometry_restarts_;
+      NODELET_WARN("odometry started a new trajectory (reset or reloaded): map reset (%zu so far)",
+                   odometry_restarts_);
+      reset_requested_ = true;
+    }
+    odometry_running_ = true;
     reset_pending = reset_requested_;
   }
 
