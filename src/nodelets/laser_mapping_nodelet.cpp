@@ -92,6 +92,7 @@ private:
   std::string rep105_map_frame_, odom_frame_, base_frame_;
   bool publish_tf_ = true;
   std::size_t path_max_poses_ = 10000;
+  std::size_t trajectory_max_poses_ = 1'000'000;  // kept for save_trajectory: 28 h at 10 Hz, 136 MB
   double map_publish_period_ = 2.0;
   int surround_every_ = 5;
 
@@ -135,6 +136,8 @@ void LaserMappingNodelet::onInit()
   pnh.param<std::string>("odom_frame", odom_frame_, "odom");
   pnh.param<std::string>("base_frame", base_frame_, "base_link");
   path_max_poses_ = static_cast<std::size_t>(boundedParam(pnh, name, "path_max_poses", 10000, 1, 1'000'000));
+  trajectory_max_poses_ = static_cast<std::size_t>(
+      boundedParam(pnh, name, "trajectory_max_poses", 1'000'000, 100, 100'000'000));
   map_publish_period_ = boundedParam(pnh, name, "map_publish_period", map_publish_period_, 0.0, 3600.0);
   surround_every_ = boundedParam(pnh, name, "surround_every", surround_every_, 1, 1000);
   mapping_ = std::make_unique<aloam::LaserMapping>();
@@ -328,6 +331,15 @@ void LaserMappingNodelet::map(const aloam::ros_io::StampedOdometryFrame& msg)
   }
   trajectory_.push_back(result.pose.isometry());
   trajectory_stamps_.push_back(msg.header.stamp.toSec());
+  // Bounded like the paths; the oldest tenth goes at once, so that a full trajectory is not shifted per frame.
+  if (trajectory_.size() > trajectory_max_poses_ + trajectory_max_poses_ / 10)
+  {
+    const auto drop = static_cast<long>(trajectory_.size() - trajectory_max_poses_);
+    NODELET_WARN_THROTTLE(kThrottleSeconds, "trajectory longer than trajectory_max_poses = %zu: oldest %ld poses "
+                          "dropped (save_trajectory writes the rest)", trajectory_max_poses_, drop);
+    trajectory_.erase(trajectory_.begin(), trajectory_.begin() + drop);
+    trajectory_stamps_.erase(trajectory_stamps_.begin(), trajectory_stamps_.begin() + drop);
+  }
   ++frames_mapped_;
   publishOutputs(msg, result);
 }
