@@ -229,6 +229,8 @@ OdometryFrame LaserOdometry::track(const std::shared_ptr<const FeatureSet>& feat
   indexLast();  // in case the caller skipped it after the previous sweep
   OdometryFrame frame;
   frame.stamp = features->stamp;
+  const bool motion_unknown = motion_unknown_;
+  motion_unknown_ = false;
 
   if (!initialized())
   {
@@ -276,9 +278,16 @@ OdometryFrame LaserOdometry::track(const std::shared_ptr<const FeatureSet>& feat
 
   frame.pose = pose_;
   frame.motion = motion_;
-  frame.corners = toSweepEnd(features, features->less_sharp, motion_);
-  frame.surfs = toSweepEnd(features, features->less_flat, motion_);
-  frame.full = toSweepEnd(features, features->full, motion_);
+  // After a gap the solved motion spans the gap, not this sweep: no deskewing with it, no prior from it.
+  const Pose sweep_motion = motion_unknown ? Pose() : motion_;
+  frame.distorted = frame.distorted || (motion_unknown && config_.deskew && features->has_time);
+  frame.corners = toSweepEnd(features, features->less_sharp, sweep_motion);
+  frame.surfs = toSweepEnd(features, features->less_flat, sweep_motion);
+  frame.full = toSweepEnd(features, features->full, sweep_motion);
+  if (motion_unknown)
+  {
+    motion_ = Pose();
+  }
   last_corners_ = frame.corners;
   last_surfs_ = frame.surfs;
   last_indexed_ = false;

@@ -74,8 +74,10 @@ private:
   std::condition_variable queue_cv_;
   aloam::ros_io::StampedOdometryFrame::ConstPtr pending_;
   bool reset_requested_ = false;
+  bool odometry_running_ = false;  // a frame of the current odometry trajectory was received
+  std::size_t odometry_restarts_ = 0;
   std::size_t skipped_ = 0;
-  TimeJumpDetector time_jump_;
+  StampGuard stamps_;
   std::atomic<bool> stop_{ false };
   std::thread worker_;
 
@@ -92,6 +94,7 @@ private:
   std::string rep105_map_frame_, odom_frame_, base_frame_;
   bool publish_tf_ = true;
   std::size_t path_max_poses_ = 10000;
+  std::size_t trajectory_max_poses_ = 1'000'000;  // kept for save_trajectory: 28 h at 10 Hz, 136 MB
   double map_publish_period_ = 2.0;
   int surround_every_ = 5;
 
@@ -135,11 +138,14 @@ void LaserMappingNodelet::onInit()
   pnh.param<std::string>("odom_frame", odom_frame_, "odom");
   pnh.param<std::string>("base_frame", base_frame_, "base_link");
   path_max_poses_ = static_cast<std::size_t>(boundedParam(pnh, name, "path_max_poses", 10000, 1, 1'000'000));
+  trajectory_max_poses_ = static_cast<std::size_t>(
+      boundedParam(pnh, name, "trajectory_max_poses", 1'000'000, 100, 100'000'000));
   map_publish_period_ = boundedParam(pnh, name, "map_publish_period", map_publish_period_, 0.0, 3600.0);
   surround_every_ = boundedParam(pnh, name, "surround_every", surround_every_, 1, 1000);
   aloam::LaserMappingConfig config;
   config.threads = boundedParam(pnh, name, "threads", config.threads, 1, 16);
   mapping_ = std::make_unique<aloam::LaserMapping>(config);
+  stamps_.setConfig(stampCheckParams(pnh, name));
   path_.header.frame_id = map_frame_;
 
   warnOutOfRange<LaserMappingConfig>(pnh, name);
@@ -165,6 +171,8 @@ void LaserMappingNodelet::onInit()
     {
       std::lock_guard<std::mutex> lock(queue_mutex_);
       s.add("frames skipped (mapping behind)", skipped_);
+      stamps_.report(s);
+      s.add("odometry restarts (map reset)", odometry_restarts_);
     }
     std::lock_guard<std::mutex> lock(core_mutex_);
     s.add("edge matches", last_result_.corner_matches);
@@ -186,15 +194,35 @@ void LaserMappingNodelet::onInit()
 
 void LaserMappingNodelet::frameCb(const aloam::ros_io::StampedOdometryFrame::ConstPtr& msg)
 {
+  // A gap needs nothing here: the correction (map <- odometry world) is a frame offset, not a velocity, so
+  // applying it after a gap extrapolates nothing; odometry restarts its own motion prior.
   bool reset_pending = false;
   {
     std::lock_guard<std::mutex> lock(queue_mutex_);
-    double jump = 0.0;
-    if (time_jump_.jumpedBack(msg->header.stamp, jump))
+    const aloam::StampVerdict verdict = stamps_.check(msg->header.stamp);
+    if (!aloam::isTaken(verdict))
     {
-      NODELET_WARN("time jumped back %.3f s (looping bag?): map reset", jump);
+      if (stamps_.warningDue(verdict))
+      {
+        NODELET_WARN_STREAM(stamps_.dropMessage(verdict, "laser_odom_frame", msg->header.stamp));
+      }
+      return;
+    }
+    if (verdict == aloam::StampVerdict::kJumpedBack)
+    {
+      NODELET_WARN("time jumped back %.3f s (looping bag?): map reset", -stamps_.lastStep());
       reset_requested_ = true;
     }
+    else if (msg->frame.status == aloam::OdometryStatus::kInitialized && odometry_running_)
+    {
+      // Odometry started a new trajectory at identity (its reset service, a reload, a restarted manager)
+      // while the stamps went on: its poses no longer fit this map, and building on would corrupt it.
+      ++odometry_restarts_;
+      NODELET_WARN("odometry started a new trajectory (reset or reloaded): map reset (%zu so far)",
+                   odometry_restarts_);
+      reset_requested_ = true;
+    }
+    odometry_running_ = true;
     reset_pending = reset_requested_;
   }
 
@@ -313,6 +341,15 @@ void LaserMappingNodelet::map(const aloam::ros_io::StampedOdometryFrame& msg)
   }
   trajectory_.push_back(result.pose.isometry());
   trajectory_stamps_.push_back(msg.header.stamp.toSec());
+  // Bounded like the paths; the oldest tenth goes at once, so that a full trajectory is not shifted per frame.
+  if (trajectory_.size() > trajectory_max_poses_ + trajectory_max_poses_ / 10)
+  {
+    const auto drop = static_cast<long>(trajectory_.size() - trajectory_max_poses_);
+    NODELET_WARN_THROTTLE(kThrottleSeconds, "trajectory longer than trajectory_max_poses = %zu: oldest %ld poses "
+                          "dropped (save_trajectory writes the rest)", trajectory_max_poses_, drop);
+    trajectory_.erase(trajectory_.begin(), trajectory_.begin() + drop);
+    trajectory_stamps_.erase(trajectory_stamps_.begin(), trajectory_stamps_.begin() + drop);
+  }
   ++frames_mapped_;
   publishClouds(msg, result, header);
 }

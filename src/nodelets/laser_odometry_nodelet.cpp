@@ -28,7 +28,8 @@ class LaserOdometryNodelet : public nodelet::Nodelet
 private:
   void onInit() override;
   void featuresCb(const aloam::ros_io::StampedFeatureSet::ConstPtr& msg);
-  void process(const aloam::ros_io::StampedFeatureSet::ConstPtr& msg);
+  bool process(const aloam::ros_io::StampedFeatureSet::ConstPtr& msg);  // false: sweep dropped
+  bool admit(const ros::Time& stamp);  // applies the time policy; false: drop the sweep
   bool resetCb(std_srvs::Trigger::Request& request, std_srvs::Trigger::Response& response);
   void reconfigureCb(const LaserOdometryConfig& config);
   void resetLocked();
@@ -38,7 +39,7 @@ private:
   std::string world_frame_, child_frame_;
   std::size_t path_max_poses_ = 10000;
   nav_msgs::Path path_;
-  TimeJumpDetector time_jump_;
+  StampGuard stamps_;
   aloam::OdometryFrame last_frame_;  // for diagnostics (clouds not kept)
   std::size_t degraded_frames_ = 0;
   StageMonitor monitor_;
@@ -64,6 +65,7 @@ void LaserOdometryNodelet::onInit()
   path_max_poses_ = static_cast<std::size_t>(boundedParam(pnh, name, "path_max_poses", 10000, 1, 1'000'000));
   odometry_ = std::make_unique<aloam::LaserOdometry>(config);
   path_.header.frame_id = world_frame_;
+  stamps_.setConfig(stampCheckParams(pnh, name));
 
   warnOutOfRange<LaserOdometryConfig>(pnh, name);
   reconfigure_server_ = std::make_unique<dynamic_reconfigure::Server<LaserOdometryConfig>>(pnh);
@@ -82,6 +84,7 @@ void LaserOdometryNodelet::onInit()
     s.add("plane matches", last_frame_.plane_matches);
     s.addf("constraint (degenerate below min)", "%.1f", last_frame_.constraint);
     s.add("degraded frames", degraded_frames_);
+    stamps_.report(s);
     if (last_frame_.status == aloam::OdometryStatus::kDegraded)
     {
       s.summary(diagnostic_msgs::DiagnosticStatus::WARN, "degraded: too few or degenerate matches, motion prior used");
@@ -100,13 +103,16 @@ void LaserOdometryNodelet::reconfigureCb(const LaserOdometryConfig& c)
   config.nearby_scan = c.nearby_scan;
   config.deskew = c.deskew;
   odometry_->setConfig(config);  // applies from the next sweep
+  aloam::StampCheckConfig stamp_config = stamps_.config();
+  stamp_config.max_gap_sweeps = c.max_gap_sweeps;
+  stamps_.setConfig(stamp_config);
 }
 
 void LaserOdometryNodelet::resetLocked()
 {
   odometry_->reset();
   path_.poses.clear();
-  time_jump_.reset();
+  stamps_.reset();
 }
 
 bool LaserOdometryNodelet::resetCb(std_srvs::Trigger::Request&, std_srvs::Trigger::Response& response)
@@ -125,20 +131,50 @@ void LaserOdometryNodelet::featuresCb(const aloam::ros_io::StampedFeatureSet::Co
     return;
   }
   const auto start = std::chrono::steady_clock::now();
-  process(msg);
-  monitor_.frameDone(msSince(start));
+  if (process(msg))
+  {
+    monitor_.frameDone(msSince(start));
+  }
 }
 
-void LaserOdometryNodelet::process(const aloam::ros_io::StampedFeatureSet::ConstPtr& msg)
+bool LaserOdometryNodelet::admit(const ros::Time& stamp)
+{
+  const aloam::StampVerdict verdict = stamps_.check(stamp);
+  switch (verdict)
+  {
+    case aloam::StampVerdict::kDuplicate:
+    case aloam::StampVerdict::kOutOfOrder:
+      if (stamps_.warningDue(verdict))
+      {
+        NODELET_WARN_STREAM(stamps_.dropMessage(verdict, "laser_features", stamp));
+      }
+      return false;
+    case aloam::StampVerdict::kJumpedBack:
+      NODELET_WARN("time jumped back %.3f s (looping bag?): odometry reset", -stamps_.lastStep());
+      resetLocked();
+      stamps_.check(stamp);  // this sweep starts the new run
+      return true;
+    case aloam::StampVerdict::kGap:
+      if (stamps_.warningDue(verdict))
+      {
+        NODELET_WARN("%.3f s since the last sweep (more than %.0f periods): motion prior reset, the sweep is "
+                     "matched from rest (%zu gaps so far)",
+                     stamps_.lastStep(), stamps_.config().max_gap_sweeps, stamps_.counts().gaps);
+      }
+      odometry_->resetMotionPrior();
+      return true;
+    default:
+      return true;
+  }
+}
+
+bool LaserOdometryNodelet::process(const aloam::ros_io::StampedFeatureSet::ConstPtr& msg)
 {
   std::lock_guard<std::mutex> lock(mutex_);
   const ros::Time stamp = msg->header.stamp;
-  double jump = 0.0;
-  if (time_jump_.jumpedBack(stamp, jump))
+  if (!admit(stamp))
   {
-    NODELET_WARN("time jumped back %.3f s (looping bag?): odometry reset", jump);
-    resetLocked();
-    time_jump_.jumpedBack(stamp, jump);  // this sweep starts the new run
+    return false;
   }
 
   auto out = boost::make_shared<aloam::ros_io::StampedOdometryFrame>();
@@ -170,6 +206,7 @@ void LaserOdometryNodelet::process(const aloam::ros_io::StampedFeatureSet::Const
   publishCloudIfSubscribed(full_pub_, *out->frame.full, msg->header);
   // Off the latency path: mapping already has the frame.
   odometry_->indexLast();
+  return true;
 }
 
 }  // namespace aloam_nodelet

@@ -1,33 +1,95 @@
 // Small pieces shared by the nodelets.
 #pragma once
 
-#include <ros/duration.h>
+#include <array>
+#include <cstdint>
+#include <cstdio>
+#include <string>
+
+#include <diagnostic_updater/DiagnosticStatusWrapper.h>
+#include <ros/node_handle.h>
 #include <ros/time.h>
+
+#include "aloam_nodelet/core/stamp_check.h"
+#include "param_utils.h"
 
 namespace aloam_nodelet
 {
 /// Seconds between repeats of a per-frame warning.
 constexpr double kThrottleSeconds = 5.0;
 
-/// Notices input that starts over (a looping bag): a stamp more than `tolerance` before the previous one.
-class TimeJumpDetector
+/// The time policy of a stage from its private parameters (read once at start-up): ~scan_period,
+/// ~max_gap_sweeps, ~jump_back_tolerance.
+inline aloam::StampCheckConfig stampCheckParams(const ros::NodeHandle& pnh, const std::string& logger)
+{
+  aloam::StampCheckConfig config;
+  config.scan_period = boundedParam(pnh, logger, "scan_period", config.scan_period, 0.01, 1.0);
+  config.max_gap_sweeps = boundedParam(pnh, logger, "max_gap_sweeps", config.max_gap_sweeps, 1.0, 1000.0);
+  config.jump_back_tolerance =
+      boundedParam(pnh, logger, "jump_back_tolerance", config.jump_back_tolerance, 0.0, 3600.0);
+  return config;
+}
+
+/// Checks the stamp of every input sweep of a stage (aloam::StampCheck) and limits the warnings about
+/// unusual stamps to one per kThrottleSeconds for each verdict, per instance (two pipelines in one
+/// manager do not silence each other). Not thread-safe: the stage calls it under its own mutex.
+class StampGuard
 {
 public:
-  explicit TimeJumpDetector(double tolerance_seconds = 1.0) : tolerance_(tolerance_seconds) {}
+  explicit StampGuard(const aloam::StampCheckConfig& config = {}) : check_(config) {}
 
-  /// Records `stamp`; true when it jumped back. Sets `jump` to how far (seconds).
-  bool jumpedBack(const ros::Time& stamp, double& jump)
+  void setConfig(const aloam::StampCheckConfig& config) { check_.setConfig(config); }
+  const aloam::StampCheckConfig& config() const { return check_.config(); }
+  aloam::StampVerdict check(const ros::Time& stamp) { return check_.check(static_cast<std::int64_t>(stamp.toNSec())); }
+  double lastStep() const { return check_.lastStep(); }
+  const aloam::StampCounts& counts() const { return check_.counts(); }
+  void reset() { check_.reset(); }
+
+  /// True when a warning about `verdict` may be logged now (and then not again for kThrottleSeconds).
+  bool warningDue(aloam::StampVerdict verdict)
   {
-    const bool back = !last_.isZero() && stamp + tolerance_ < last_;
-    jump = back ? (last_ - stamp).toSec() : 0.0;
-    last_ = stamp;
-    return back;
+    const ros::WallTime now = ros::WallTime::now();
+    ros::WallTime& last = last_warning_[static_cast<std::size_t>(verdict)];
+    if (!last.isZero() && (now - last).toSec() < kThrottleSeconds)
+    {
+      return false;
+    }
+    last = now;
+    return true;
   }
-  void reset() { last_ = ros::Time(); }
+
+  /// The warning for a dropped sweep (duplicate or out of order) at `stamp` on `input`.
+  std::string dropMessage(aloam::StampVerdict verdict, const std::string& input, const ros::Time& stamp) const
+  {
+    const aloam::StampCounts& c = check_.counts();
+    char text[256];
+    if (verdict == aloam::StampVerdict::kDuplicate)
+    {
+      std::snprintf(text, sizeof(text), "%s: sweep stamped %.6f dropped: same stamp as the last one (%zu so far)",
+                    input.c_str(), stamp.toSec(), c.duplicates);
+    }
+    else
+    {
+      std::snprintf(text, sizeof(text),
+                    "%s: sweep stamped %.6f dropped: %.3f s older than the last one, out of order (%zu so far)",
+                    input.c_str(), stamp.toSec(), -check_.lastStep(), c.out_of_order);
+    }
+    return text;
+  }
+
+  /// Adds the counts to a diagnostics status.
+  void report(diagnostic_updater::DiagnosticStatusWrapper& s) const
+  {
+    const aloam::StampCounts& c = check_.counts();
+    s.add("stamps duplicate (dropped)", c.duplicates);
+    s.add("stamps out of order (dropped)", c.out_of_order);
+    s.add("time gaps (motion prediction restarted)", c.gaps);
+    s.add("time jumps back (reset)", c.jumps_back);
+  }
 
 private:
-  ros::Duration tolerance_;
-  ros::Time last_;
+  aloam::StampCheck check_;
+  std::array<ros::WallTime, 6> last_warning_{};  // indexed by StampVerdict
 };
 
 }  // namespace aloam_nodelet

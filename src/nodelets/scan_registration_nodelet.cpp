@@ -35,6 +35,7 @@ private:
   aloam::ros_io::ReaderOptions reader_options_;
   aloam::Cloud input_;  // reused between sweeps
   double min_elevation_deg_ = -15.0, max_elevation_deg_ = 15.0;  // for a beam count instead of a preset
+  StampGuard stamps_;  // drops duplicate and late sweeps before any work is done on them
   aloam::RegistrationStats last_stats_;
   std::size_t last_features_[4] = { 0, 0, 0, 0 };  // sharp, less sharp, flat, less flat
   StageMonitor monitor_;
@@ -79,6 +80,7 @@ void ScanRegistrationNodelet::onInit()
   reader_options_.max_points = static_cast<std::size_t>(
       boundedParam(pnh, name, "max_points", static_cast<int>(reader_options_.max_points), 1000, 20'000'000));
   registration_ = std::make_unique<aloam::ScanRegistration>(config);
+  stamps_.setConfig(stampCheckParams(pnh, name));
 
   warnOutOfRange<ScanRegistrationConfig>(pnh, name);
   reconfigure_server_ = std::make_unique<dynamic_reconfigure::Server<ScanRegistrationConfig>>(pnh);
@@ -101,6 +103,7 @@ void ScanRegistrationNodelet::onInit()
     s.add("rings", last_stats_.rings);
     s.addf("features (sharp, less sharp, flat, less flat)", "%zu, %zu, %zu, %zu", last_features_[0],
            last_features_[1], last_features_[2], last_features_[3]);
+    stamps_.report(s);
   });
   // Queue of one: always the newest sweep.
   points_sub_ = nh.subscribe("velodyne_points", 1, &ScanRegistrationNodelet::pointsCb, this);
@@ -141,6 +144,16 @@ void ScanRegistrationNodelet::pointsCb(const sensor_msgs::PointCloud2::ConstPtr&
 bool ScanRegistrationNodelet::process(const sensor_msgs::PointCloud2::ConstPtr& msg)
 {
   std::lock_guard<std::mutex> lock(mutex_);
+  // Gaps and jumps back pass: odometry and mapping, which keep state over time, act on them.
+  const aloam::StampVerdict verdict = stamps_.check(msg->header.stamp);
+  if (!aloam::isTaken(verdict))
+  {
+    if (stamps_.warningDue(verdict))
+    {
+      NODELET_WARN_STREAM(stamps_.dropMessage(verdict, "velodyne_points", msg->header.stamp));
+    }
+    return false;
+  }
   const aloam::ros_io::ReadReport report = aloam::ros_io::readPointCloud2(*msg, reader_options_, input_);
   for (const std::string& warning : report.warnings)
   {

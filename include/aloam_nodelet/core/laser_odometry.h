@@ -77,8 +77,14 @@ public:
 
   /// Forgets the previous sweep and the pose; the next sweep starts a new trajectory at identity.
   void reset();
-  /// Forgets the motion prior only (e.g. after a gap in the data).
-  void resetMotionPrior() { motion_ = Pose(); }
+  /// Forgets the motion prior (after a gap in the data): the next sweep is solved from an identity prior and
+  /// not deskewed, since the motion across the gap is no per-sweep velocity; nor is it the prior of the sweep
+  /// after. The pose and the previous sweep are kept.
+  void resetMotionPrior()
+  {
+    motion_ = Pose();
+    motion_unknown_ = true;
+  }
   bool initialized() const { return last_corners_ != nullptr; }
   const Pose& pose() const { return pose_; }
 
@@ -97,6 +103,7 @@ private:
   std::shared_ptr<const Cloud> last_surfs_;
   bool last_distorted_ = false;  // the previous sweep's clouds could not be deskewed
   bool last_indexed_ = false;    // the trees below index last_corners_ / last_surfs_
+  bool motion_unknown_ = false;  // resetMotionPrior() was called: no velocity for the next sweep
   // The previous sweep's features indexed as a whole (nearest point) and ring by ring (the points
   // that complete a line or a plane on neighbouring rings).
   KdTree corner_tree_;

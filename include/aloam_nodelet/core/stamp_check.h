@@ -1,0 +1,77 @@
+// What to do with a sweep given its stamp and the stamps seen before: the time policy of the stages,
+// kept free of ROS so that every case has a unit test.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+
+namespace aloam
+{
+struct StampCheckConfig
+{
+  double scan_period = 0.1;  ///< nominal seconds between sweeps
+  /// A step forward longer than this many sweep periods is a gap: the motion since the last sweep is
+  /// unknown, so a motion prediction must not be extrapolated over it.
+  double max_gap_sweeps = 5.0;
+  /// A stamp further back than this (seconds) means the data starts over (a looping bag); a smaller step
+  /// back is a late sweep, dropped.
+  double jump_back_tolerance = 1.0;
+};
+
+enum class StampVerdict
+{
+  kFirst,       ///< first stamp (or first after a reset): take it
+  kInSequence,  ///< take it
+  kGap,         ///< take it, but restart the motion prediction: the previous sweep is too long ago
+  kJumpedBack,  ///< far back: the data starts over; reset, then take it as the first of the new run
+  kDuplicate,   ///< the stamp of the last sweep taken: drop it
+  kOutOfOrder,  ///< a little before the last sweep taken: drop it
+};
+
+/// True for the verdicts whose sweep is processed (everything but duplicates and late sweeps).
+inline bool isTaken(StampVerdict verdict)
+{
+  return verdict != StampVerdict::kDuplicate && verdict != StampVerdict::kOutOfOrder;
+}
+
+/// Short name of a verdict for log messages ("duplicate", "gap", ...).
+const char* toString(StampVerdict verdict);
+
+/// How many stamps got each verdict since construction (a reset keeps the counts).
+struct StampCounts
+{
+  std::size_t taken = 0;
+  std::size_t duplicates = 0;
+  std::size_t out_of_order = 0;
+  std::size_t gaps = 0;
+  std::size_t jumps_back = 0;
+};
+
+/// Classifies the stamps of consecutive sweeps. Stamps are integer nanoseconds, so a duplicate is an exact
+/// match and not a floating point coincidence.
+class StampCheck
+{
+public:
+  explicit StampCheck(StampCheckConfig config = {}) : config_(config) {}
+
+  const StampCheckConfig& config() const { return config_; }
+  void setConfig(const StampCheckConfig& config) { config_ = config; }
+
+  /// Classifies `stamp_ns` against the last stamp taken and, if the sweep is taken, remembers it.
+  StampVerdict check(std::int64_t stamp_ns);
+
+  /// Seconds from the last stamp taken to the one just checked (negative: back; 0 for the first).
+  double lastStep() const { return last_step_; }
+  const StampCounts& counts() const { return counts_; }
+  /// Forgets the last stamp: the next one is a first stamp.
+  void reset() { has_last_ = false; }
+
+private:
+  StampCheckConfig config_;
+  bool has_last_ = false;
+  std::int64_t last_ns_ = 0;
+  double last_step_ = 0.0;
+  StampCounts counts_;
+};
+
+}  // namespace aloam
