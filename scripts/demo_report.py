@@ -25,6 +25,8 @@ import matplotlib
 matplotlib.use("Agg")  # no display needed
 import matplotlib.pyplot as plt  # noqa: E402 (after the backend choice)
 
+from aloam_poses import quat_to_rot  # noqa: E402 (beside this script)
+
 
 def read_kitti(path):
     rows = np.loadtxt(path, ndmin=2)
@@ -37,15 +39,6 @@ def write_kitti(path, poses):
     with open(path, "w") as out:
         for m in poses:
             out.write(" ".join("%.9e" % v for v in m[:3, :].reshape(-1)) + "\n")
-
-
-def quat_to_rot(x, y, z, w):
-    n = np.sqrt(x * x + y * y + z * z + w * w)
-    x, y, z, w = x / n, y / n, z / n, w / n
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
 def read_tum(path):

@@ -86,12 +86,25 @@ void KdTree::build(const Cloud& cloud, int begin, int end)
   }
   if (!entries_.empty())
   {
-    nodes_.reserve(2 * entries_.size() / kLeafSize + 1);
-    buildNode(0, static_cast<int>(entries_.size()));
+    Box box;
+    for (int a = 0; a < 3; ++a)
+    {
+      box.lo[a] = box.hi[a] = entries_[0].p[a];
+    }
+    for (const Entry& e : entries_)
+    {
+      for (int a = 0; a < 3; ++a)
+      {
+        box.lo[a] = std::min(box.lo[a], e.p[a]);
+        box.hi[a] = std::max(box.hi[a], e.p[a]);
+      }
+    }
+    nodes_.reserve(4 * entries_.size() / kLeafSize + 1);
+    buildNode(0, static_cast<int>(entries_.size()), box);
   }
 }
 
-int KdTree::buildNode(int begin, int end)
+int KdTree::buildNode(int begin, int end, const Box& box)
 {
   const int id = static_cast<int>(nodes_.size());
   nodes_.push_back(Node{ begin, end });
@@ -99,21 +112,12 @@ int KdTree::buildNode(int begin, int end)
   {
     return id;
   }
-  // Split the widest extent at its median.
-  float lo[3] = { entries_[begin].p[0], entries_[begin].p[1], entries_[begin].p[2] };
-  float hi[3] = { lo[0], lo[1], lo[2] };
-  for (int i = begin + 1; i < end; ++i)
-  {
-    for (int a = 0; a < 3; ++a)
-    {
-      lo[a] = std::min(lo[a], entries_[i].p[a]);
-      hi[a] = std::max(hi[a], entries_[i].p[a]);
-    }
-  }
+  // Split the widest side of the node's box at the median. The box is the parent's cut at the split
+  // (not the points' tight bounds): choosing the axis needs no pass over the points.
   int axis = 0;
   for (int a = 1; a < 3; ++a)
   {
-    if (hi[a] - lo[a] > hi[axis] - lo[axis])
+    if (box.hi[a] - box.lo[a] > box.hi[axis] - box.lo[axis])
     {
       axis = a;
     }
@@ -122,8 +126,11 @@ int KdTree::buildNode(int begin, int end)
   std::nth_element(entries_.begin() + begin, entries_.begin() + mid, entries_.begin() + end,
                    [axis](const Entry& a, const Entry& b) { return a.p[axis] < b.p[axis]; });
   const float split = entries_[mid].p[axis];
-  const int left = buildNode(begin, mid);
-  const int right = buildNode(mid, end);
+  Box left_box = box, right_box = box;
+  left_box.hi[axis] = split;
+  right_box.lo[axis] = split;
+  const int left = buildNode(begin, mid, left_box);
+  const int right = buildNode(mid, end, right_box);
   Node& node = nodes_[id];
   node.left = left;
   node.right = right;

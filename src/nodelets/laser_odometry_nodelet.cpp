@@ -16,6 +16,7 @@
 #include "aloam_nodelet/core/laser_odometry.h"
 #include "aloam_nodelet/ros/conversions.h"
 #include "aloam_nodelet/ros/stage_messages.h"
+#include "background_worker.h"
 #include "nodelet_common.h"
 #include "param_utils.h"
 #include "publish_utils.h"
@@ -48,7 +49,12 @@ private:
   ros::Publisher frame_pub_, odom_pub_, path_pub_, corner_pub_, surf_pub_, full_pub_;
   ros::ServiceServer reset_srv_;
   std::unique_ptr<dynamic_reconfigure::Server<LaserOdometryConfig>> reconfigure_server_;
+  // Indexes each sweep for the next one after the frame is out; declared last, so stopped first.
+  std::unique_ptr<BackgroundWorker> indexer_;
 };
+
+// Nice value of the indexing thread: mapping, working on the frame just published, gets the cores first.
+constexpr int kIndexerNice = 10;
 
 void LaserOdometryNodelet::onInit()
 {
@@ -64,6 +70,12 @@ void LaserOdometryNodelet::onInit()
   pnh.param<std::string>("child_frame", child_frame_, "laser_odom");
   path_max_poses_ = static_cast<std::size_t>(boundedParam(pnh, name, "path_max_poses", 10000, 1, 1'000'000));
   odometry_ = std::make_unique<aloam::LaserOdometry>(config);
+  indexer_ = std::make_unique<BackgroundWorker>(
+      [this] {
+        std::lock_guard<std::mutex> lock(mutex_);
+        odometry_->indexLast();
+      },
+      kIndexerNice);
   path_.header.frame_id = world_frame_;
   stamps_.setConfig(stampCheckParams(pnh, name));
 
@@ -204,8 +216,8 @@ bool LaserOdometryNodelet::process(const aloam::ros_io::StampedFeatureSet::Const
   publishCloudIfSubscribed(corner_pub_, *out->frame.corners, msg->header);
   publishCloudIfSubscribed(surf_pub_, *out->frame.surfs, msg->header);
   publishCloudIfSubscribed(full_pub_, *out->frame.full, msg->header);
-  // Off the latency path: mapping already has the frame.
-  odometry_->indexLast();
+  // Off the latency path: mapping already has the frame. (If the next sweep comes first, track() indexes.)
+  indexer_->request();
   return true;
 }
 

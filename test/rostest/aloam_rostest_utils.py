@@ -17,6 +17,7 @@ import subprocess
 import tempfile
 import threading
 import time
+import sys
 import unittest
 
 import numpy as np
@@ -26,6 +27,10 @@ import rospy
 from diagnostic_msgs.msg import DiagnosticArray
 from nav_msgs.msg import Odometry
 from sensor_msgs.msg import PointCloud2, PointField
+
+# The pose helpers the demo report uses too (scripts/aloam_poses.py).
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
+from aloam_poses import quat_to_rot  # noqa: E402,F401 (re-exported for the tests)
 
 PKG = "aloam_nodelet"
 VIS_FIELDS = ("x", "y", "z", "intensity", "time", "ring")
@@ -181,15 +186,6 @@ class StampCollector:
 
 # --------------------------------------------------------------------------------------------------------
 # Poses and trajectories
-
-
-def quat_to_rot(x, y, z, w):
-    n = math.sqrt(x * x + y * y + z * z + w * w)
-    x, y, z, w = x / n, y / n, z / n, w / n
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
 
 
 def rot_to_quat(r):

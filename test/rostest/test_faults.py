@@ -155,6 +155,14 @@ class TestFaults(u.ScratchTestCase):
             self.assertTrue(u.pose_is_finite(a), "%s: non-finite pose" % what)
         print("%s: %d/%d replayed sweeps answered" % (what, REPLAY, REPLAY), flush=True)
 
+    def wait_for_pipeline(self):
+        """Waits until the stages are connected again and have had 3 s to answer; returns when it started."""
+        since = time.time()
+        self.assertEqual(u.wait_for_graph(subscribed=["/velodyne_points", "/laser_features", "/laser_odom_frame"],
+                                          timeout=20), [])
+        time.sleep(3.0)
+        return since
+
     def answered_after(self, streamer, since):
         """(sent, answered on the full-rate output) for the sweeps streamed after wall time `since`."""
         stamps = {s for t, s in streamer.sent if t >= since}
@@ -249,10 +257,7 @@ class TestFaults(u.ScratchTestCase):
                 time.sleep(1.0)
                 self.assertTrue(call(MANAGER + "/load_nodelet", NodeletLoad, name, kind, [], [], [], "").success,
                                 "load %s" % name)
-                since = time.time()
-                self.assertEqual(u.wait_for_graph(subscribed=["/velodyne_points", "/laser_features",
-                                                              "/laser_odom_frame"], timeout=20), [])
-                time.sleep(3.0)
+                since = self.wait_for_pipeline()
                 sent, answered = self.answered_after(streamer, since)
                 # The poses mapped since are those of the drive: a restarted stage must not corrupt the others.
                 error, compared = self.worst_relative_error(mapped, since)
@@ -281,10 +286,7 @@ class TestFaults(u.ScratchTestCase):
             for name, kind in NODELETS:
                 self.assertTrue(call(MANAGER + "/load_nodelet", NodeletLoad, name, kind, [], [], [], "").success,
                                 "load %s into the new manager" % name)
-            since = time.time()
-            self.assertEqual(u.wait_for_graph(subscribed=["/velodyne_points", "/laser_features",
-                                                          "/laser_odom_frame"], timeout=20), [])
-            time.sleep(3.0)
+            since = self.wait_for_pipeline()
         sent, answered = self.answered_after(streamer, since)
         print("manager killed (pid %d) and restarted (pid %s): %d of %d streamed sweeps answered at full rate"
               % (pid, node_pid(MANAGER), answered, sent), flush=True)

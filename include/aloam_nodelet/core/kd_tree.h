@@ -48,12 +48,16 @@ private:
     int axis = 0;
     float split = 0.0f;
   };
+  struct Box
+  {
+    float lo[3], hi[3];
+  };
   class Candidates;
 
   std::vector<Entry> entries_;
   std::vector<Node> nodes_;
 
-  int buildNode(int begin, int end);
+  int buildNode(int begin, int end, const Box& box);
   void search(int node, const float* q, Candidates& found) const;
 };
 

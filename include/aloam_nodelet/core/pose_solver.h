@@ -48,8 +48,8 @@ public:
   std::pair<int, int> addMatches(const MatchSlots& slots);
   int residualCount() const { return problem_.NumResidualBlocks(); }
 
-  /// Runs at most `max_iterations` Levenberg-Marquardt iterations, evaluating on `threads` threads.
-  void solve(int max_iterations, int threads = 1);
+  /// Runs at most `max_iterations` Levenberg-Marquardt iterations.
+  void solve(int max_iterations);
   Pose pose() const;
 
   /// How well the residuals pin the pose down: the smallest eigenvalue of J^T J at the current pose, with
@@ -73,7 +73,7 @@ struct MatchSolveOptions
 {
   int outer_iterations = 2;    ///< searches, each followed by a solve
   int max_iterations = 4;      ///< solver iterations per solve
-  int threads = 1;             ///< threads for the search and the solver's evaluation
+  int threads = 1;             ///< threads sharing the correspondence search
   int min_matches = 10;        ///< fewer matches: stop without solving
   double huber_delta = 0.1;
   double lever_arm = 10.0;     ///< for the constraint strength of the last solve
@@ -136,7 +136,7 @@ MatchSolveResult matchAndSolve(Pose& pose, std::size_t line_points, std::size_t 
     {
       break;
     }
-    problem.solve(options.max_iterations, options.threads);
+    problem.solve(options.max_iterations);
     pose = problem.pose();
     if (outer + 1 == options.outer_iterations)
     {
