@@ -261,12 +261,6 @@ const CubeMap::Cube* CubeMap::find(const CubeIndex& index) const
   return it == cubes_.end() ? nullptr : &it->second;
 }
 
-CubeMap::Cube* CubeMap::find(const CubeIndex& index)
-{
-  const auto it = cubes_.find(index);
-  return it == cubes_.end() ? nullptr : &it->second;
-}
-
 std::size_t CubeMap::cornerCount() const
 {
   std::size_t n = 0;

@@ -109,7 +109,11 @@ private:
 
 LaserMappingNodelet::~LaserMappingNodelet()
 {
-  stop_ = true;
+  {
+    // Under the queue's lock: set between the worker's check and its wait, the flag would be missed.
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    stop_ = true;
+  }
   queue_cv_.notify_all();
   if (worker_.joinable())
   {

@@ -94,7 +94,6 @@ public:
   std::size_t evictBeyond(const Eigen::Vector3d& position, double radius);
 
   const Cube* find(const CubeIndex& index) const;
-  Cube* find(const CubeIndex& index);
   std::size_t cubeCount() const { return cubes_.size(); }
   std::size_t cornerCount() const;
   std::size_t surfCount() const;
