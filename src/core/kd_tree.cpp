@@ -139,7 +139,7 @@ int KdTree::buildNode(int begin, int end, const Box& box)
   return id;
 }
 
-void KdTree::search(int id, const float* q, Candidates& found) const
+void KdTree::search(int id, const float* q, Candidates& found, float cell_sq, float* offset) const
 {
   const Node& node = nodes_[id];
   if (node.left < 0)
@@ -151,14 +151,20 @@ void KdTree::search(int id, const float* q, Candidates& found) const
     return;
   }
   // Left holds coordinates <= split, right >= split: descend the query's side first, then the other
-  // side only if the splitting plane is closer than the current bound.
+  // side only if its cell comes closer than the current bound. The far cell's distance follows from
+  // this cell's: along the split axis the query is now |diff| outside (offset[] keeps the squared
+  // distance per axis), so every point there is at least cell_sq - offset + diff^2 away.
   const float diff = q[node.axis] - node.split;
   const int near_side = diff < 0.0f ? node.left : node.right;
   const int far_side = diff < 0.0f ? node.right : node.left;
-  search(near_side, q, found);
-  if (diff * diff < found.bound())
+  search(near_side, q, found, cell_sq, offset);
+  const float old_offset = offset[node.axis];
+  const float far_sq = cell_sq - old_offset + diff * diff;
+  if (far_sq < found.bound())
   {
-    search(far_side, q, found);
+    offset[node.axis] = diff * diff;
+    search(far_side, q, found, far_sq, offset);
+    offset[node.axis] = old_offset;
   }
 }
 
@@ -172,7 +178,8 @@ int KdTree::nearest(const Point& query, float max_sq_distance, float* sq_distanc
   }
   const float q[3] = { query.x, query.y, query.z };
   Candidates found(1, max_sq_distance, skip, index, distance);
-  search(0, q, found);
+  float offset[3] = { 0.0f, 0.0f, 0.0f };
+  search(0, q, found, 0.0f, offset);
   if (index.empty())
   {
     return -1;
@@ -191,7 +198,8 @@ int KdTree::nearestK(const Point& query, int k, float max_sq_distance, std::vect
   if (k > 0 && !nodes_.empty() && isFinite(query))
   {
     const float q[3] = { query.x, query.y, query.z };
-    search(0, q, found);
+    float offset[3] = { 0.0f, 0.0f, 0.0f };
+    search(0, q, found, 0.0f, offset);
   }
   return static_cast<int>(index.size());
 }

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <numeric>
 
+#include "aloam_nodelet/core/fast_atan2.h"
 #include "aloam_nodelet/core/parallel.h"
 #include "aloam_nodelet/core/voxel_filter.h"
 
@@ -106,8 +107,7 @@ void ScanRegistration::bucketByRing(const Cloud& cloud, int begin, int end, bool
     }
     else
     {
-      const double elevation = std::atan2(double(in.z), std::sqrt(double(in.x) * in.x + double(in.y) * in.y));
-      ring = config_.sensor.ringForElevation(elevation);
+      ring = config_.sensor.ringForPoint(in.x, in.y, in.z);
     }
     if (ring < 0)
     {
@@ -126,7 +126,7 @@ void ScanRegistration::bucketByRing(const Cloud& cloud, int begin, int end, bool
     }
     else
     {
-      const double azimuth = std::atan2(double(in.y), double(in.x));
+      const double azimuth = fastAtan2(double(in.y), double(in.x));
       if (!worker.have_start)
       {
         worker.have_start = true;

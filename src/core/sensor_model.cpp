@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace aloam
@@ -9,6 +10,7 @@ namespace aloam
 namespace
 {
 constexpr double kRadToDeg = 180.0 / M_PI;
+constexpr double kDegToRad = M_PI / 180.0;
 
 std::vector<double> linspace(int n, double lo, double hi)
 {
@@ -136,6 +138,24 @@ void SensorModel::finalize()
     upper_bounds_deg_[i] = 0.5 * (e[i] + e[i + 1]);
   }
   upper_bounds_deg_[n - 1] = e[n - 1] + outer_high;
+  // tan is increasing on (-90, 90) deg, so slopes compare as elevations do.
+  const auto slope = [](double deg) {
+    if (deg >= 90.0)
+    {
+      return std::numeric_limits<double>::infinity();
+    }
+    if (deg <= -90.0)
+    {
+      return -std::numeric_limits<double>::infinity();
+    }
+    return std::tan(deg * kDegToRad);
+  };
+  lowest_bound_slope_ = slope(lowest_bound_deg_);
+  upper_bounds_slope_.resize(n);
+  for (std::size_t i = 0; i < n; ++i)
+  {
+    upper_bounds_slope_[i] = slope(upper_bounds_deg_[i]);
+  }
 }
 
 int SensorModel::ringForElevation(double elevation_rad) const
@@ -147,6 +167,17 @@ int SensorModel::ringForElevation(double elevation_rad) const
   }
   const auto it = std::lower_bound(upper_bounds_deg_.begin(), upper_bounds_deg_.end(), deg);
   return static_cast<int>(it - upper_bounds_deg_.begin());
+}
+
+int SensorModel::ringForPoint(double x, double y, double z) const
+{
+  const double slope = z / std::sqrt(x * x + y * y);  // +-inf straight up or down, NaN at the origin
+  if (!(slope >= lowest_bound_slope_ && slope <= upper_bounds_slope_.back()))
+  {
+    return -1;
+  }
+  const auto it = std::lower_bound(upper_bounds_slope_.begin(), upper_bounds_slope_.end(), slope);
+  return static_cast<int>(it - upper_bounds_slope_.begin());
 }
 
 int SensorModel::ringFromField(int field_ring) const

@@ -1,6 +1,7 @@
 #include "aloam_nodelet/core/voxel_filter.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -45,9 +46,47 @@ bool cellOf(float v, double inverse_leaf, std::int32_t& cell)
   return true;
 }
 
+// Bits needed to write v >= 0.
+int bitWidth(std::uint64_t v)
+{
+  int bits = 0;
+  while (v != 0)
+  {
+    ++bits;
+    v >>= 1;
+  }
+  return bits;
+}
+
+// Sorts (key, point index) pairs, given in index order, by the low `bits` bits of the key: a least
+// significant digit radix sort, 8 bits a pass. Being stable, it keeps equal keys in index order, which
+// is what sorting the pairs would give.
+void radixSort(std::vector<std::pair<std::uint64_t, std::uint32_t>>& items, int bits)
+{
+  std::vector<std::pair<std::uint64_t, std::uint32_t>> buffer(items.size());
+  for (int shift = 0; shift < bits; shift += 8)
+  {
+    std::array<std::size_t, 257> start{};
+    for (const auto& item : items)
+    {
+      ++start[((item.first >> shift) & 0xFF) + 1];
+    }
+    for (std::size_t digit = 1; digit < start.size(); ++digit)
+    {
+      start[digit] += start[digit - 1];
+    }
+    for (const auto& item : items)
+    {
+      buffer[start[(item.first >> shift) & 0xFF]++] = item;
+    }
+    items.swap(buffer);
+  }
+}
+
 // The voxel cells of the finite points of `in`, sorted by cell (x, then y, then z) and, within a cell, by
-// point index. Cells are packed into one 64-bit key when the cloud spans fewer than 2^21 cells per axis
-// (always, for lidar clouds): sorting integers is several times faster than comparing triples.
+// point index. Cells are packed into one integer key, each axis in as many bits as the cloud's extent
+// needs (a lidar sweep at 0.2-0.8 m leaves needs about 30 bits), and radix-sorted: much faster than
+// comparing triples.
 std::vector<VoxelEntry> sortedCells(const Cloud& in, double inverse_leaf)
 {
   std::vector<VoxelEntry> entries;
@@ -77,29 +116,33 @@ std::vector<VoxelEntry> sortedCells(const Cloud& in, double inverse_leaf)
       hi[a] = std::max(hi[a], c[a]);
     }
   }
-  constexpr int kBits = 21;
-  constexpr std::int64_t kSpan = std::int64_t(1) << kBits;
-  if (hi[0] - lo[0] >= kSpan || hi[1] - lo[1] >= kSpan || hi[2] - lo[2] >= kSpan)
+  int bits[3];
+  for (int a = 0; a < 3; ++a)
+  {
+    bits[a] = bitWidth(static_cast<std::uint64_t>(hi[a] - lo[a]));
+  }
+  if (bits[0] + bits[1] + bits[2] > 63)  // also keeps every shift below 64
   {
     std::sort(entries.begin(), entries.end());
     return entries;
   }
-  // (packed cell, point index): the index breaks ties as the triple comparison does.
+  const int shift_x = bits[1] + bits[2], shift_y = bits[2];
   std::vector<std::pair<std::uint64_t, std::uint32_t>> keys;
   keys.reserve(entries.size());
   for (const VoxelEntry& e : entries)
   {
-    const auto key = (std::uint64_t(e.x - lo[0]) << (2 * kBits)) | (std::uint64_t(e.y - lo[1]) << kBits) |
+    const auto key = (std::uint64_t(e.x - lo[0]) << shift_x) | (std::uint64_t(e.y - lo[1]) << shift_y) |
                      std::uint64_t(e.z - lo[2]);
     keys.emplace_back(key, e.index);
   }
-  std::sort(keys.begin(), keys.end());
+  radixSort(keys, bits[0] + bits[1] + bits[2]);
+  const auto mask = [](int n) { return (std::uint64_t(1) << n) - 1; };
   for (std::size_t i = 0; i < keys.size(); ++i)
   {
     const std::uint64_t key = keys[i].first;
-    entries[i] = VoxelEntry{ static_cast<std::int32_t>(std::int64_t(key >> (2 * kBits)) + lo[0]),
-                             static_cast<std::int32_t>(std::int64_t((key >> kBits) & (kSpan - 1)) + lo[1]),
-                             static_cast<std::int32_t>(std::int64_t(key & (kSpan - 1)) + lo[2]), keys[i].second };
+    entries[i] = VoxelEntry{ static_cast<std::int32_t>(std::int64_t(key >> shift_x) + lo[0]),
+                             static_cast<std::int32_t>(std::int64_t((key >> shift_y) & mask(bits[1])) + lo[1]),
+                             static_cast<std::int32_t>(std::int64_t(key & mask(bits[2])) + lo[2]), keys[i].second };
   }
   return entries;
 }

@@ -3,12 +3,14 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <random>
 #include <string>
 #include <variant>
 #include <vector>
 
 #include <gtest/gtest.h>
 
+#include "aloam_nodelet/core/fast_atan2.h"
 #include "aloam_nodelet/core/laser_odometry.h"
 #include "aloam_nodelet/core/scan_registration.h"
 #include "test_support.h"
@@ -607,4 +609,37 @@ TEST(ScanRegistrationTest, TooFewPointsGiveEmptyOutput)
   EXPECT_EQ(f.stats.points_in, 5u);
 }
 
+}  // namespace aloam
+
+namespace aloam
+{
+namespace
+{
+// The azimuths of the registration: within 4e-8 rad of std::atan2 everywhere, quadrants and axes right.
+TEST(FastAtan2, WithinFortyNanoradiansOfAtan2)
+{
+  std::mt19937 rng(13);
+  std::uniform_real_distribution<double> coordinate(-100.0, 100.0);
+  std::uniform_real_distribution<double> tiny(-1e-3, 1e-3);
+  double worst = 0.0;
+  for (int k = 0; k < 1'000'000; ++k)
+  {
+    const double x = k % 4 == 3 ? tiny(rng) : coordinate(rng);
+    const double y = coordinate(rng);
+    worst = std::max(worst, std::fabs(fastAtan2(y, x) - std::atan2(y, x)));
+  }
+  EXPECT_LT(worst, 4e-8);
+  EXPECT_GT(worst, 0.0);  // an approximation, not std::atan2 itself
+  for (const auto& [y, x] : std::vector<std::pair<double, double>>{
+           { 0.0, 1.0 }, { 1.0, 0.0 }, { 0.0, -1.0 }, { -1.0, 0.0 }, { 1.0, 1.0 }, { -1.0, -1.0 }, { -0.0, -1.0 },
+           { 0.0, 0.0 }, { -0.0, -0.0 }, { 1e-300, -1.0 }, { 5.0, std::numeric_limits<double>::infinity() } })
+  {
+    EXPECT_NEAR(fastAtan2(y, x), std::atan2(y, x), 4e-8) << y << ", " << x;
+    EXPECT_EQ(std::signbit(fastAtan2(y, x)), std::signbit(std::atan2(y, x))) << y << ", " << x;
+  }
+  EXPECT_TRUE(std::isnan(fastAtan2(std::numeric_limits<double>::quiet_NaN(), 1.0)));
+  EXPECT_TRUE(std::isnan(fastAtan2(1.0, std::numeric_limits<double>::quiet_NaN())));
+}
+
+}  // namespace
 }  // namespace aloam

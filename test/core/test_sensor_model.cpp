@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <random>
 #include <set>
 #include <stdexcept>
 #include <string>
@@ -235,4 +236,56 @@ TEST(SensorModelTest, ThirtyTwoBeamTableRoundsToNearestBeam)
   }
 }
 
+}  // namespace aloam
+
+namespace aloam
+{
+namespace
+{
+// The registration's ring lookup without an arctangent files every point as the elevation lookup does,
+// also points just beside the ring bounds and outside the table.
+TEST(SensorModelTest, RingForPointAgreesWithRingForElevation)
+{
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<double> azimuth(-M_PI, M_PI);
+  std::uniform_real_distribution<double> range(0.5, 150.0);
+  std::uniform_real_distribution<double> jitter(-1e-6, 1e-6);
+  for (const std::string& name : SensorModel::presetNames())
+  {
+    const SensorModel model = *SensorModel::fromPreset(name);
+    std::vector<double> elevations_deg;
+    const std::vector<double>& e = model.elevationsDeg();
+    for (std::size_t i = 0; i < e.size(); ++i)
+    {
+      elevations_deg.push_back(e[i]);
+      if (i + 1 < e.size())
+      {
+        elevations_deg.push_back(0.5 * (e[i] + e[i + 1]));  // a bound, give or take the jitter
+      }
+    }
+    std::uniform_real_distribution<double> any(e.front() - 10.0, e.back() + 10.0);
+    for (int k = 0; k < 20000; ++k)
+    {
+      elevations_deg.push_back(any(rng));
+    }
+    int mismatched = 0, assigned = 0;
+    for (const double elevation_deg : elevations_deg)
+    {
+      const double el = (elevation_deg + jitter(rng)) * M_PI / 180.0;
+      const double a = azimuth(rng), r = range(rng);
+      const double x = r * std::cos(el) * std::cos(a), y = r * std::cos(el) * std::sin(a), z = r * std::sin(el);
+      const int expected = model.ringForElevation(std::atan2(z, std::sqrt(x * x + y * y)));
+      mismatched += model.ringForPoint(x, y, z) != expected ? 1 : 0;
+      assigned += expected >= 0 ? 1 : 0;
+    }
+    EXPECT_EQ(mismatched, 0) << name;
+    EXPECT_GT(assigned, 1000) << name;
+    EXPECT_EQ(model.ringForPoint(0.0, 0.0, 0.0), -1) << name;
+    EXPECT_EQ(model.ringForPoint(0.0, 0.0, 5.0), -1) << name;   // straight up
+    EXPECT_EQ(model.ringForPoint(0.0, 0.0, -5.0), -1) << name;  // straight down
+    EXPECT_EQ(model.ringForPoint(std::numeric_limits<double>::quiet_NaN(), 1.0, 0.0), -1) << name;
+  }
+}
+
+}  // namespace
 }  // namespace aloam

@@ -58,7 +58,8 @@ private:
   std::vector<Node> nodes_;
 
   int buildNode(int begin, int end, const Box& box);
-  void search(int node, const float* q, Candidates& found) const;
+  /// `cell_sq`: squared distance from the query to the node's cell; `offset`: its part per axis.
+  void search(int node, const float* q, Candidates& found, float cell_sq, float* offset) const;
 };
 
 }  // namespace aloam

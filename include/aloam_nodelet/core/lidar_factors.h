@@ -1,11 +1,26 @@
 // Point-to-line and point-to-plane residuals shared by odometry and mapping.
 #pragma once
 
+#include <vector>
+
 #include <ceres/ceres.h>
 #include <Eigen/Geometry>
 
 namespace aloam
 {
+/// A point of the current sweep matched to a line of the reference (through `a`, unit `direction`).
+struct LineMatch
+{
+  Eigen::Vector3d point, a, direction;
+};
+
+/// A point of the current sweep matched to a plane of the reference: normal . x + d = 0.
+struct PlaneMatch
+{
+  Eigen::Vector3d point, normal;
+  double d = 0.0;
+};
+
 /// Applies the pose (q, t) to `p`; `q_data` is in Eigen's (x, y, z, w) order.
 template <typename T>
 Eigen::Matrix<T, 3, 1> applyPose(const T* q_data, const T* t_data, const Eigen::Vector3d& p)
@@ -19,32 +34,39 @@ Eigen::Matrix<T, 3, 1> applyPose(const T* q_data, const T* t_data, const Eigen::
 /// v = (qx, qy, qz): exact for any q, so it matches automatic differentiation of applyPose.
 Eigen::Matrix<double, 3, 4> rotationJacobian(const double* q, const Eigen::Vector3d& p);
 
-/// The residuals below with analytic Jacobians (the autodiff functors stay as their reference in the
-/// tests): several times cheaper to evaluate than automatic differentiation with 7-wide jets.
-class AnalyticPointToLine : public ceres::SizedCostFunction<3, 4, 3>
+/// d(q) / d(delta) at delta = 0 for the unit-quaternion manifold (Eigen's x, y, z, w order), whose
+/// update is q <- [cos|delta|, sin|delta| delta / |delta|] * q, as Ceres's EigenQuaternionManifold (and
+/// EigenQuaternionParameterization) define it.
+Eigen::Matrix<double, 4, 3> quaternionPlusJacobian(const double* q);
+
+/// Every match of one solve as a single Ceres cost function over (q, t): three residuals per line match,
+/// (x - a) x direction, then one per plane match, normal . x + d, with analytic Jacobians. Each match is
+/// robustified here with the Huber loss of scale `huber_delta` (<= 0: none), so that the squared
+/// residuals sum to Ceres's robust cost, sum rho(|r|^2); the Jacobians are those of the scaled residuals.
+/// One residual block instead of one per match: Ceres's bookkeeping per block cost more than the
+/// residuals themselves. The matches are evaluated over `threads` threads; results do not depend on it.
+class MatchResiduals : public ceres::CostFunction
 {
 public:
-  AnalyticPointToLine(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& u);
+  /// Keeps references: the matches must outlive the cost function.
+  MatchResiduals(const std::vector<LineMatch>& lines, const std::vector<PlaneMatch>& planes, double huber_delta,
+                 int threads);
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
 
 private:
-  Eigen::Vector3d p_, a_;
-  Eigen::Matrix3d minus_u_cross_;  // r = -[u]x (x - a)
+  const std::vector<LineMatch>& lines_;
+  const std::vector<PlaneMatch>& planes_;
+  double huber_delta_;
+  int threads_;
 };
 
-class AnalyticPointToPlane : public ceres::SizedCostFunction<1, 4, 3>
-{
-public:
-  AnalyticPointToPlane(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double d);
-  bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
-
-private:
-  Eigen::Vector3d p_, n_;
-  double d_;
-};
+/// The residual of one match without any loss (3 values for a line, 1 for a plane) into `r`, and its
+/// row-major Jacobians into `jq` (rows x 4) and `jt` (rows x 3), which may be null.
+void evaluateLine(const LineMatch& m, const double* q, const double* t, double* r, double* jq, double* jt);
+void evaluatePlane(const PlaneMatch& m, const double* q, const double* t, double* r, double* jq, double* jt);
 
 /// Distance of the transformed point from the line through `a` with unit direction `u`, as the 3-vector
-/// (x - a) x u, whose norm is the distance.
+/// (x - a) x u, whose norm is the distance. Automatic differentiation: the reference of the tests.
 struct PointToLineResidual
 {
   PointToLineResidual(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& u)
@@ -61,10 +83,6 @@ struct PointToLineResidual
     return true;
   }
 
-  static ceres::CostFunction* create(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& u)
-  {
-    return new AnalyticPointToLine(p, a, u);
-  }
   static ceres::CostFunction* createAutoDiff(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
                                              const Eigen::Vector3d& u)
   {
@@ -74,7 +92,8 @@ struct PointToLineResidual
   Eigen::Vector3d p_, a_, u_;
 };
 
-/// Signed distance of the transformed point from the plane n.x + d = 0 (n a unit normal).
+/// Signed distance of the transformed point from the plane n.x + d = 0 (n a unit normal). Automatic
+/// differentiation: the reference of the tests.
 struct PointToPlaneResidual
 {
   PointToPlaneResidual(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double d) : p_(p), n_(n), d_(d) {}
@@ -86,10 +105,6 @@ struct PointToPlaneResidual
     return true;
   }
 
-  static ceres::CostFunction* create(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double d)
-  {
-    return new AnalyticPointToPlane(p, n, d);
-  }
   static ceres::CostFunction* createAutoDiff(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double d)
   {
     return new ceres::AutoDiffCostFunction<PointToPlaneResidual, 1, 4, 3>(new PointToPlaneResidual(p, n, d));

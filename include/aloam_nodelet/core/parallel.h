@@ -87,20 +87,20 @@ private:
   std::thread thread_;  // last: starts once everything above is ready
 };
 
-/// The calling thread's helpers (created on first use, stopped when the thread ends).
-inline std::vector<std::unique_ptr<Helper>>& helpersOfThisThread(std::size_t count)
-{
-  thread_local std::vector<std::unique_ptr<Helper>> helpers;
-  while (helpers.size() < count)
-  {
-    helpers.push_back(std::make_unique<Helper>());
-  }
-  return helpers;
-}
+/// Helper threads for one parallel region at a time.
+using HelperTeam = std::vector<std::unique_ptr<Helper>>;
+
+/// Lends a team with at least `count` helpers. Teams are shared by every thread of the process (the
+/// stages of a pipeline run one after another on different threads, and the team the last region gave
+/// back is still awake when the next stage starts); a team is created when all are lent out, so
+/// concurrent regions (two pipelines, a background job) never wait for each other.
+HelperTeam* lendTeam(std::size_t count);
+/// Gives a team back; the most recently returned is lent next.
+void returnTeam(HelperTeam* team);
 }  // namespace detail
 
 /// Calls body(begin, end, part) for `parts` contiguous, nearly equal chunks of [0, count), part 0 on the
-/// calling thread and the others on its helper threads, and returns when all are done. With one part,
+/// calling thread and the others on helper threads, and returns when all are done. With one part,
 /// or too little work to be worth sharing, everything runs here. Chunks write to disjoint outputs, so
 /// results do not depend on the number of parts.
 template <typename Body>
@@ -112,17 +112,27 @@ void parallelChunks(int count, int parts, int min_chunk, Body&& body)
     body(0, count, 0);
     return;
   }
-  auto& helpers = detail::helpersOfThisThread(static_cast<std::size_t>(parts - 1));
   const auto bound = [&](int part) { return static_cast<int>(static_cast<long long>(count) * part / parts); };
+  // Waits for the helpers and gives the team back however this returns (also if body throws here).
+  struct Lease
+  {
+    detail::HelperTeam* team;
+    int started = 0;
+    ~Lease()
+    {
+      for (int i = 0; i < started; ++i)
+      {
+        (*team)[i]->wait();
+      }
+      detail::returnTeam(team);
+    }
+  } lease{ detail::lendTeam(static_cast<std::size_t>(parts - 1)) };
   for (int part = 1; part < parts; ++part)
   {
-    helpers[part - 1]->start([&body, &bound, part] { body(bound(part), bound(part + 1), part); });
+    (*lease.team)[part - 1]->start([&body, &bound, part] { body(bound(part), bound(part + 1), part); });
+    ++lease.started;
   }
   body(0, bound(1), 0);
-  for (int part = 1; part < parts; ++part)
-  {
-    helpers[part - 1]->wait();
-  }
 }
 
 }  // namespace aloam

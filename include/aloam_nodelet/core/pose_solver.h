@@ -7,24 +7,12 @@
 
 #include <ceres/ceres.h>
 
+#include "aloam_nodelet/core/lidar_factors.h"
 #include "aloam_nodelet/core/parallel.h"
 #include "aloam_nodelet/core/pose.h"
 
 namespace aloam
 {
-/// A point of the current sweep matched to a line of the reference (through `a`, unit `direction`).
-struct LineMatch
-{
-  Eigen::Vector3d point, a, direction;
-};
-
-/// A point of the current sweep matched to a plane of the reference: normal . x + d = 0.
-struct PlaneMatch
-{
-  Eigen::Vector3d point, normal;
-  double d = 0.0;
-};
-
 /// One slot per point, filled by independent searches (possibly on several threads), then added to a
 /// problem in point order, so the problem does not depend on how the search was split.
 struct MatchSlots
@@ -36,36 +24,40 @@ struct MatchSlots
   void resize(std::size_t line_points, std::size_t plane_points);
 };
 
-/// A Ceres problem over one pose (q in Eigen's x, y, z, w order on the unit-quaternion manifold, and t),
-/// with one shared robust loss for all residuals.
+/// The pose problem of one correspondence search: a quaternion (Eigen's x, y, z, w order, on the
+/// unit-quaternion manifold) and a translation under the robust point-to-line and point-to-plane residuals
+/// of the matches found (MatchResiduals: one Ceres residual block for all of them).
 class PoseProblem
 {
 public:
-  PoseProblem(const Pose& initial, double huber_delta);
+  /// `threads` share the evaluation of the residuals; the solution does not depend on it.
+  PoseProblem(const Pose& initial, double huber_delta, int threads = 1);
 
-  void addResidual(ceres::CostFunction* cost) { problem_.AddResidualBlock(cost, loss_.get(), q_, t_); }
-  /// Adds a residual for every found match, lines then planes; returns how many of each.
+  /// Takes every found match, lines then planes in point order; returns how many of each.
   std::pair<int, int> addMatches(const MatchSlots& slots);
-  int residualCount() const { return problem_.NumResidualBlocks(); }
+  void addLine(const LineMatch& match) { lines_.push_back(match); }
+  void addPlane(const PlaneMatch& match) { planes_.push_back(match); }
+  int matchCount() const { return static_cast<int>(lines_.size() + planes_.size()); }
 
-  /// Runs at most `max_iterations` Levenberg-Marquardt iterations.
+  /// Runs at most `max_iterations` Levenberg-Marquardt iterations (none without matches).
   void solve(int max_iterations);
   Pose pose() const;
 
-  /// How well the residuals pin the pose down: the smallest eigenvalue of J^T J at the current pose, with
-  /// rotations expressed as the motion of a point `lever_arm` metres away (so that rotation and
-  /// translation compare). The pose is then known to about (residual noise) / sqrt(value) along its
-  /// weakest direction. Near 0 when some direction is unconstrained (one scan ring, a corridor, an open
-  /// field); on a synthetic street about 100 for a VLP-16 sweep and 500 for an HDL-64 sweep.
-  double constraintStrength(double lever_arm);
+  /// How well the matches pin the pose down: the smallest eigenvalue of J^T J at the current pose (no
+  /// robust loss; rotation in the manifold's tangent), with rotations expressed as the motion of a point
+  /// `lever_arm` metres away (so that rotation and translation compare). The pose is then known to about
+  /// (residual noise) / sqrt(value) along its weakest direction. Near 0 when some direction is
+  /// unconstrained (one scan ring, a corridor, an open field); on a synthetic street about 100 for a
+  /// VLP-16 sweep and 500 for an HDL-64 sweep.
+  double constraintStrength(double lever_arm) const;
 
 private:
   double q_[4];
   double t_[3];
-  // Owned here, not by the problem (which would own it only once a residual used it): declared first, so
-  // it outlives the problem.
-  std::unique_ptr<ceres::LossFunction> loss_;
-  ceres::Problem problem_;
+  double huber_delta_;
+  int threads_;
+  std::vector<LineMatch> lines_;
+  std::vector<PlaneMatch> planes_;
 };
 
 /// How the matching stages alternate correspondence search and solving.
@@ -129,7 +121,7 @@ MatchSolveResult matchAndSolve(Pose& pose, std::size_t line_points, std::size_t 
         }
       }
     });
-    PoseProblem problem(pose, options.huber_delta);
+    PoseProblem problem(pose, options.huber_delta, options.threads);
     const auto [lines, planes] = problem.addMatches(slots);
     result = MatchSolveResult{ lines, planes, 0.0 };
     if (lines + planes < options.min_matches)

@@ -38,12 +38,17 @@ public:
   /// Ring of the nearest beam, or -1 when the elevation lies outside the table by more than half the
   /// spacing of the outermost beams.
   int ringForElevation(double elevation_rad) const;
+  /// ringForElevation of the point (x, y, z) seen from the sensor, without an arctangent: the slope
+  /// z / hypot(x, y) against the tangents of the ring bounds (the same rings, at a fraction of the cost).
+  int ringForPoint(double x, double y, double z) const;
 
 private:
   std::string name_ = "custom";
   std::vector<double> elevations_deg_;
   std::vector<double> upper_bounds_deg_;  // ring i takes elevations up to upper_bounds_deg_[i]
   double lowest_bound_deg_ = 0.0;
+  std::vector<double> upper_bounds_slope_;  // tan of upper_bounds_deg_ (+-inf beyond +-90 deg)
+  double lowest_bound_slope_ = 0.0;
   int columns_ = 1800;
   double scan_period_ = 0.1;
   bool ring_field_from_top_ = false;
