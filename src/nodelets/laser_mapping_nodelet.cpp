@@ -1,6 +1,7 @@
 // Laser mapping nodelet. Every odometry frame is answered at once with a corrected pose
 // (aft_mapped_to_init_high_frec); a worker thread maps the newest frame, skipping (and counting) any that
-// arrive while it is busy, so odometry never waits on mapping.
+// arrive while it is busy, so odometry never waits on mapping. Once the mapped pose is out, a thread on
+// the cores' idle time adds the frame to the map and indexes the next submap.
 #include <atomic>
 #include <condition_variable>
 #include <memory>
@@ -31,6 +32,7 @@
 #include "aloam_nodelet/eval/trajectory_io.h"
 #include "aloam_nodelet/ros/conversions.h"
 #include "aloam_nodelet/ros/stage_messages.h"
+#include "background_worker.h"
 #include "nodelet_common.h"
 #include "param_utils.h"
 #include "publish_utils.h"
@@ -47,7 +49,8 @@ private:
   void onInit() override;
   void frameCb(const aloam::ros_io::StampedOdometryFrame::ConstPtr& msg);
   void work();
-  void map(const aloam::ros_io::StampedOdometryFrame& msg);
+  void registerFrameLocked(const aloam::ros_io::StampedOdometryFrame::ConstPtr& msg);
+  void updateMapLocked();
   void publishPose(const std_msgs::Header& header, const aloam::MappingResult& result);
   void publishClouds(const aloam::ros_io::StampedOdometryFrame& msg, const aloam::MappingResult& result,
                      const std_msgs::Header& header);
@@ -66,6 +69,8 @@ private:
   ros::Time last_map_publish_;
   std::size_t frames_mapped_ = 0;
   aloam::MappingResult last_result_;
+  // The registered frame whose map update is still to come (updateMapLocked).
+  aloam::ros_io::StampedOdometryFrame::ConstPtr unmapped_;
   std::size_t degraded_frames_ = 0;
   StageMonitor monitor_;
 
@@ -105,6 +110,8 @@ private:
   tf2_ros::Buffer tf_buffer_;
   std::unique_ptr<tf2_ros::TransformListener> tf_listener_;
   std::unique_ptr<dynamic_reconfigure::Server<LaserMappingConfig>> reconfigure_server_;
+  // Runs updateMapLocked after the pose is out; declared last, so stopped first.
+  std::unique_ptr<BackgroundWorker> updater_;
 };
 
 LaserMappingNodelet::~LaserMappingNodelet()
@@ -192,6 +199,11 @@ void LaserMappingNodelet::onInit()
       s.summary(diagnostic_msgs::DiagnosticStatus::WARN, "degraded: too few or degenerate matches, prediction used");
     }
   });
+  updater_ = std::make_unique<BackgroundWorker>(
+      [this] {
+        std::lock_guard<std::mutex> lock(core_mutex_);
+        updateMapLocked();
+      });
   worker_ = std::thread(&LaserMappingNodelet::work, this);
   frame_sub_ = nh.subscribe("laser_odom_frame", 5, &LaserMappingNodelet::frameCb, this);
 }
@@ -310,6 +322,7 @@ void LaserMappingNodelet::work()
     const auto start = std::chrono::steady_clock::now();
     {
       std::lock_guard<std::mutex> lock(core_mutex_);
+      updateMapLocked();  // the previous frame's, unless the updater got to it first
       if (reset)
       {
         mapping_->reset();
@@ -317,26 +330,31 @@ void LaserMappingNodelet::work()
         trajectory_.clear();
         trajectory_stamps_.clear();
       }
-      map(*msg);
+      registerFrameLocked(msg);
     }
     monitor_.frameDone(msSince(start));
+    updater_->request();
   }
 }
 
-void LaserMappingNodelet::map(const aloam::ros_io::StampedOdometryFrame& msg)
+void LaserMappingNodelet::registerFrameLocked(const aloam::ros_io::StampedOdometryFrame::ConstPtr& msg)
 {
-  aloam::MappingResult result = mapping_->registerFrame(msg.frame);
+  const aloam::MappingResult result = mapping_->registerFrame(msg->frame);
   {
     std::lock_guard<std::mutex> lock(correction_mutex_);
     correction_ = result.correction;
   }
   std_msgs::Header header;
-  header.stamp = msg.header.stamp;
+  header.stamp = msg->header.stamp;
   header.frame_id = map_frame_;
   publishPose(header, result);
-  // After the pose is out: the frame joins the map and the submap is indexed for the next frame.
-  mapping_->updateMap(result);
+  // The map figures (map size, cubes, evictions) keep their last values until updateMapLocked.
+  const aloam::MappingResult previous = last_result_;
   last_result_ = result;
+  last_result_.map_corners = previous.map_corners;
+  last_result_.map_surfs = previous.map_surfs;
+  last_result_.cubes = previous.cubes;
+  unmapped_ = msg;
   if (result.status == aloam::MappingStatus::kDegraded)
   {
     ++degraded_frames_;
@@ -344,7 +362,7 @@ void LaserMappingNodelet::map(const aloam::ros_io::StampedOdometryFrame& msg)
                           result.corner_matches, result.plane_matches, result.constraint);
   }
   trajectory_.push_back(result.pose.isometry());
-  trajectory_stamps_.push_back(msg.header.stamp.toSec());
+  trajectory_stamps_.push_back(msg->header.stamp.toSec());
   // Bounded like the paths; the oldest tenth goes at once, so that a full trajectory is not shifted per frame.
   if (trajectory_.size() > trajectory_max_poses_ + trajectory_max_poses_ / 10)
   {
@@ -354,8 +372,22 @@ void LaserMappingNodelet::map(const aloam::ros_io::StampedOdometryFrame& msg)
     trajectory_.erase(trajectory_.begin(), trajectory_.begin() + drop);
     trajectory_stamps_.erase(trajectory_stamps_.begin(), trajectory_stamps_.begin() + drop);
   }
+}
+
+void LaserMappingNodelet::updateMapLocked()
+{
+  if (!unmapped_)
+  {
+    return;
+  }
+  // The frame joins the map, and the submap is indexed for the next frame.
+  mapping_->updateMap(last_result_);
   ++frames_mapped_;
-  publishClouds(msg, result, header);
+  std_msgs::Header header;
+  header.stamp = unmapped_->header.stamp;
+  header.frame_id = map_frame_;
+  publishClouds(*unmapped_, last_result_, header);
+  unmapped_.reset();
 }
 
 void LaserMappingNodelet::publishPose(const std_msgs::Header& header, const aloam::MappingResult& result)
@@ -426,6 +458,7 @@ void LaserMappingNodelet::reconfigureCb(const LaserMappingConfig& c)
 {
   // Waits for the frame being mapped; a new cube size re-buckets the map (no point is lost).
   std::lock_guard<std::mutex> lock(core_mutex_);
+  updateMapLocked();  // the last frame joins the map as it was registered
   aloam::LaserMappingConfig config = mapping_->config();
   config.cube_size = c.cube_size;
   config.corner_leaf_size = c.corner_leaf_size;
@@ -446,6 +479,7 @@ bool LaserMappingNodelet::saveMapCb(SaveMap::Request& request, SaveMap::Response
   aloam::Cloud all;
   {
     std::lock_guard<std::mutex> lock(core_mutex_);
+    updateMapLocked();  // the map includes the last registered frame
     mapping_->map().collectAll(all);
   }
   if (all.empty())

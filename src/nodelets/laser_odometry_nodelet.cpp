@@ -1,4 +1,6 @@
 // Laser odometry nodelet: FeatureSet in, odometry frame out, both as shared pointers.
+#include <atomic>
+#include <chrono>
 #include <memory>
 #include <mutex>
 
@@ -29,6 +31,7 @@ class LaserOdometryNodelet : public nodelet::Nodelet
 private:
   void onInit() override;
   void featuresCb(const aloam::ros_io::StampedFeatureSet::ConstPtr& msg);
+  void mappedCb(const nav_msgs::Odometry::ConstPtr& msg);
   bool process(const aloam::ros_io::StampedFeatureSet::ConstPtr& msg);  // false: sweep dropped
   bool admit(const ros::Time& stamp);  // applies the time policy; false: drop the sweep
   bool resetCb(std_srvs::Trigger::Request& request, std_srvs::Trigger::Response& response);
@@ -45,16 +48,18 @@ private:
   std::size_t degraded_frames_ = 0;
   StageMonitor monitor_;
 
-  ros::Subscriber features_sub_;
+  // Indexing waits for mapping's answer to the frame (aft_mapped_to_init), at most index_wait_: until
+  // then mapping, on the latency path, has the cores to itself.
+  std::chrono::steady_clock::duration index_wait_{};
+  std::atomic<std::uint64_t> awaiting_mapped_ns_{ 0 };  // stamp of the frame whose index waits
+
+  ros::Subscriber features_sub_, mapped_sub_;
   ros::Publisher frame_pub_, odom_pub_, path_pub_, corner_pub_, surf_pub_, full_pub_;
   ros::ServiceServer reset_srv_;
   std::unique_ptr<dynamic_reconfigure::Server<LaserOdometryConfig>> reconfigure_server_;
   // Indexes each sweep for the next one after the frame is out; declared last, so stopped first.
   std::unique_ptr<BackgroundWorker> indexer_;
 };
-
-// Nice value of the indexing thread: mapping, working on the frame just published, gets the cores first.
-constexpr int kIndexerNice = 10;
 
 void LaserOdometryNodelet::onInit()
 {
@@ -74,10 +79,12 @@ void LaserOdometryNodelet::onInit()
       [this] {
         std::lock_guard<std::mutex> lock(mutex_);
         odometry_->indexLast();
-      },
-      kIndexerNice);
+      });
   path_.header.frame_id = world_frame_;
   stamps_.setConfig(stampCheckParams(pnh, name));
+  const double index_wait = boundedParam(pnh, name, "index_wait", 0.5 * stamps_.config().scan_period, 0.0, 1.0);
+  index_wait_ = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(index_wait));
 
   warnOutOfRange<LaserOdometryConfig>(pnh, name);
   reconfigure_server_ = std::make_unique<dynamic_reconfigure::Server<LaserOdometryConfig>>(pnh);
@@ -103,6 +110,10 @@ void LaserOdometryNodelet::onInit()
     }
   });
   features_sub_ = nh.subscribe("laser_features", 2, &LaserOdometryNodelet::featuresCb, this);
+  if (index_wait_ > std::chrono::steady_clock::duration::zero())
+  {
+    mapped_sub_ = nh.subscribe("aft_mapped_to_init", 2, &LaserOdometryNodelet::mappedCb, this);
+  }
 }
 
 void LaserOdometryNodelet::reconfigureCb(const LaserOdometryConfig& c)
@@ -146,6 +157,14 @@ void LaserOdometryNodelet::featuresCb(const aloam::ros_io::StampedFeatureSet::Co
   if (process(msg))
   {
     monitor_.frameDone(msSince(start));
+  }
+}
+
+void LaserOdometryNodelet::mappedCb(const nav_msgs::Odometry::ConstPtr& msg)
+{
+  if (msg->header.stamp.toNSec() == awaiting_mapped_ns_.load())
+  {
+    indexer_->request();
   }
 }
 
@@ -216,8 +235,10 @@ bool LaserOdometryNodelet::process(const aloam::ros_io::StampedFeatureSet::Const
   publishCloudIfSubscribed(corner_pub_, *out->frame.corners, msg->header);
   publishCloudIfSubscribed(surf_pub_, *out->frame.surfs, msg->header);
   publishCloudIfSubscribed(full_pub_, *out->frame.full, msg->header);
-  // Off the latency path: mapping already has the frame. (If the next sweep comes first, track() indexes.)
-  indexer_->request();
+  // Off the latency path: once mapping has answered for the frame, or after index_wait. (If the next
+  // sweep comes first, track() indexes.)
+  awaiting_mapped_ns_ = stamp.toNSec();
+  indexer_->requestBy(std::chrono::steady_clock::now() + index_wait_);
   return true;
 }
 
