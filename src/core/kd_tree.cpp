@@ -6,8 +6,9 @@ namespace aloam
 {
 namespace
 {
-// Points per leaf: small enough to prune well, large enough that the tree stays shallow.
-constexpr int kLeafSize = 8;
+// Points per leaf: small enough to prune well, large enough that the tree stays shallow (16 measured
+// best of 4, 8, 12, 16, 24, 32 on KITTI: odometry and mapping queries and the builds after the pose).
+constexpr int kLeafSize = 16;
 
 float squaredDistance(const float* a, const float* b)
 {

@@ -15,7 +15,6 @@ Eigen::Matrix3d cross(const Eigen::Vector3d& v)
   return m;
 }
 
-using RowMajor34 = Eigen::Matrix<double, 3, 4, Eigen::RowMajor>;
 using RowMajor33 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
 
 // Rescales the n residuals of one match so that their squared norm becomes the Huber cost
@@ -62,16 +61,18 @@ void robustify(int n, double delta, double* r, double* jq, double* jt)
 }
 }  // namespace
 
-Eigen::Matrix<double, 3, 4> rotationJacobian(const double* q, const Eigen::Vector3d& p)
+PoseTerms::PoseTerms(const double* q, const double* t_data) : t(t_data[0], t_data[1], t_data[2])
 {
   const Eigen::Vector3d v(q[0], q[1], q[2]);
   const double w = q[3];
-  Eigen::Matrix<double, 3, 4> j;
-  // d/dv: 2 w (v x p) -> -2 w [p]x;  2 v x (v x p) = 2 (v (v.p) - p (v.v)) -> 2 ((v.p) I + v p^T - 2 p v^T).
-  j.leftCols<3>() = -2.0 * w * cross(p) +
-                    2.0 * (v.dot(p) * Eigen::Matrix3d::Identity() + v * p.transpose() - 2.0 * p * v.transpose());
-  j.col(3) = 2.0 * v.cross(p);
-  return j;
+  const Eigen::Matrix3d v_cross = cross(v);
+  a = Eigen::Matrix3d::Identity() + 2.0 * w * v_cross + 2.0 * v_cross * v_cross;
+  for (int i = 0; i < 3; ++i)
+  {
+    const Eigen::Matrix3d e_cross = cross(Eigen::Vector3d::Unit(i));
+    d[i] = 2.0 * w * e_cross + 2.0 * (e_cross * v_cross + v_cross * e_cross);
+  }
+  d[3] = 2.0 * v_cross;
 }
 
 Eigen::Matrix<double, 4, 3> quaternionPlusJacobian(const double* q)
@@ -85,36 +86,46 @@ Eigen::Matrix<double, 4, 3> quaternionPlusJacobian(const double* q)
   return j;
 }
 
-void evaluateLine(const LineMatch& m, const double* q, const double* t, double* r, double* jq, double* jt)
+void evaluateLine(const LineMatch& m, const PoseTerms& pose, double* r, double* jq, double* jt)
 {
-  // r = (x - a) x u = -[u]x (x - a)
-  const Eigen::Matrix3d minus_u_cross = -cross(m.direction);
-  Eigen::Map<Eigen::Vector3d> residual(r);
-  residual = minus_u_cross * (applyPose(q, t, m.point) - m.a);
+  // r = (x - a) x u
+  const Eigen::Vector3d& u = m.direction;
+  const Eigen::Vector3d residual = (pose.a * m.point + pose.t - m.a).cross(u);
+  r[0] = residual.x();
+  r[1] = residual.y();
+  r[2] = residual.z();
   if (jq != nullptr)
   {
-    Eigen::Map<RowMajor34> dq(jq);
-    dq = minus_u_cross * rotationJacobian(q, m.point);
+    for (int c = 0; c < 4; ++c)
+    {
+      const Eigen::Vector3d column = (pose.d[c] * m.point).cross(u);
+      jq[c] = column.x();
+      jq[4 + c] = column.y();
+      jq[8 + c] = column.z();
+    }
   }
   if (jt != nullptr)
   {
     Eigen::Map<RowMajor33> dt(jt);
-    dt = minus_u_cross;
+    dt = -cross(u);  // d((x - a) x u) / dx
   }
 }
 
-void evaluatePlane(const PlaneMatch& m, const double* q, const double* t, double* r, double* jq, double* jt)
+void evaluatePlane(const PlaneMatch& m, const PoseTerms& pose, double* r, double* jq, double* jt)
 {
-  r[0] = m.normal.dot(applyPose(q, t, m.point)) + m.d;
+  r[0] = m.normal.dot(pose.a * m.point + pose.t) + m.d;
   if (jq != nullptr)
   {
-    Eigen::Map<Eigen::Matrix<double, 1, 4>> dq(jq);
-    dq = m.normal.transpose() * rotationJacobian(q, m.point);
+    for (int c = 0; c < 4; ++c)
+    {
+      jq[c] = m.normal.dot(pose.d[c] * m.point);
+    }
   }
   if (jt != nullptr)
   {
-    Eigen::Map<Eigen::Matrix<double, 1, 3>> dt(jt);
-    dt = m.normal.transpose();
+    jt[0] = m.normal.x();
+    jt[1] = m.normal.y();
+    jt[2] = m.normal.z();
   }
 }
 
@@ -131,8 +142,7 @@ bool MatchResiduals::Evaluate(double const* const* parameters, double* residuals
 {
   // Below this many matches per thread, handing work over costs more than it saves.
   constexpr int kMinMatchesPerThread = 512;
-  const double* q = parameters[0];
-  const double* t = parameters[1];
+  const PoseTerms pose(parameters[0], parameters[1]);
   double* jq = jacobians != nullptr ? jacobians[0] : nullptr;
   double* jt = jacobians != nullptr ? jacobians[1] : nullptr;
   const int n_lines = static_cast<int>(lines_.size());
@@ -149,11 +159,11 @@ bool MatchResiduals::Evaluate(double const* const* parameters, double* residuals
       double* row_t = jt != nullptr ? jt + 3 * row : nullptr;
       if (line)
       {
-        evaluateLine(lines_[i], q, t, r, row_q, row_t);
+        evaluateLine(lines_[i], pose, r, row_q, row_t);
       }
       else
       {
-        evaluatePlane(planes_[i - n_lines], q, t, r, row_q, row_t);
+        evaluatePlane(planes_[i - n_lines], pose, r, row_q, row_t);
       }
       robustify(n, huber_delta_, r, row_q, row_t);
     }

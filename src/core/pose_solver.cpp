@@ -95,15 +95,16 @@ double PoseProblem::constraintStrength(double lever_arm) const
   }
   const Eigen::Matrix<double, 4, 3> plus = quaternionPlusJacobian(q_);
   TangentMatrix normal = TangentMatrix::Zero();
+  const PoseTerms pose(q_, t_);
   double r[3], jq[12], jt[9];
   for (const LineMatch& m : lines_)
   {
-    evaluateLine(m, q_, t_, r, jq, jt);
+    evaluateLine(m, pose, r, jq, jt);
     accumulateNormal<3>(jq, jt, plus, normal);
   }
   for (const PlaneMatch& m : planes_)
   {
-    evaluatePlane(m, q_, t_, r, jq, jt);
+    evaluatePlane(m, pose, r, jq, jt);
     accumulateNormal<1>(jq, jt, plus, normal);
   }
   Eigen::Matrix<double, kTangentSize, 1> scale;

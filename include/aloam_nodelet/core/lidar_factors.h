@@ -30,9 +30,17 @@ Eigen::Matrix<T, 3, 1> applyPose(const T* q_data, const T* t_data, const Eigen::
   return q * p.cast<T>() + t;
 }
 
-/// d(q * p) / d(qx, qy, qz, qw) for q * p as Eigen computes it, p + 2 w (v x p) + 2 v x (v x p) with
-/// v = (qx, qy, qz): exact for any q, so it matches automatic differentiation of applyPose.
-Eigen::Matrix<double, 3, 4> rotationJacobian(const double* q, const Eigen::Vector3d& p);
+/// A pose (q, t) prepared for transforming many points with derivatives. q * p as Eigen computes it,
+/// p + 2 w (v x p) + 2 v x (v x p) with v = (qx, qy, qz), is linear in p for any q (unit or not, as the
+/// solver visits it): q * p = a p, and d(q * p) / d(q_c) = d[c] p for c = qx, qy, qz, qw. Exact, so it
+/// matches automatic differentiation of applyPose; per point it costs a few matrix-vector products.
+struct PoseTerms
+{
+  PoseTerms(const double* q, const double* t);
+  Eigen::Matrix3d a;
+  Eigen::Matrix3d d[4];
+  Eigen::Vector3d t;
+};
 
 /// d(q) / d(delta) at delta = 0 for the unit-quaternion manifold (Eigen's x, y, z, w order), whose
 /// update is q <- [cos|delta|, sin|delta| delta / |delta|] * q, as Ceres's EigenQuaternionManifold (and
@@ -60,10 +68,10 @@ private:
   int threads_;
 };
 
-/// The residual of one match without any loss (3 values for a line, 1 for a plane) into `r`, and its
-/// row-major Jacobians into `jq` (rows x 4) and `jt` (rows x 3), which may be null.
-void evaluateLine(const LineMatch& m, const double* q, const double* t, double* r, double* jq, double* jt);
-void evaluatePlane(const PlaneMatch& m, const double* q, const double* t, double* r, double* jq, double* jt);
+/// The residual of one match at `pose` without any loss (3 values for a line, 1 for a plane) into `r`, and
+/// its row-major Jacobians into `jq` (rows x 4) and `jt` (rows x 3), which may be null.
+void evaluateLine(const LineMatch& m, const PoseTerms& pose, double* r, double* jq, double* jt);
+void evaluatePlane(const PlaneMatch& m, const PoseTerms& pose, double* r, double* jq, double* jt);
 
 /// Distance of the transformed point from the line through `a` with unit direction `u`, as the 3-vector
 /// (x - a) x u, whose norm is the distance. Automatic differentiation: the reference of the tests.
