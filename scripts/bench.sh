@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Speed and memory of the core (aloam_bench, offline), then the live latency of the nodelet pipeline:
 # KITTI sweeps published at 10 Hz into `roslaunch aloam_nodelet aloam.launch sensor:=HDL64`.
-#   ./scripts/bench.sh                 everything (about 10 minutes)
+#   ./scripts/bench.sh                 everything (about 3 minutes)
 #   ./scripts/bench.sh --live-only     the live run only
 #   ./scripts/bench.sh ARGS...         ARGS go to the offline aloam_bench (e.g. --only sim --sim-sweeps 50)
 set -euo pipefail

@@ -69,7 +69,7 @@ private:
   static void lowerPriority()
   {
     // Only this thread. Lowering a thread's priority needs no privilege; where SCHED_IDLE is refused,
-    // the lowest nice value serves nearly as well.
+    // nice 19 (the lowest priority) serves nearly as well.
     sched_param param{};
     param.sched_priority = 0;
     if (pthread_setschedparam(pthread_self(), SCHED_IDLE, &param) != 0)
