@@ -92,3 +92,25 @@ TEST(BackgroundWorker, StopsWhileWaitingForADeadline)
 
 }  // namespace
 }  // namespace aloam_nodelet
+
+namespace aloam_nodelet
+{
+namespace
+{
+// Only the start waits for idle time: the job itself runs at the stage's (normal) priority, so a stage
+// waiting on the job's lock never waits on a thread the scheduler starves.
+TEST(BackgroundWorker, JobRunsAtNormalPriority)
+{
+  std::atomic<int> runs{ 0 };
+  std::atomic<int> policy{ -1 };
+  BackgroundWorker worker([&] {
+    policy = sched_getscheduler(0);
+    ++runs;
+  });
+  worker.request();
+  ASSERT_TRUE(waitFor(runs, 1));
+  EXPECT_EQ(policy.load(), SCHED_OTHER);
+}
+
+}  // namespace
+}  // namespace aloam_nodelet
