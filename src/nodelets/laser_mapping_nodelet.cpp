@@ -1,7 +1,7 @@
 // Laser mapping nodelet. Every odometry frame is answered at once with a corrected pose
 // (aft_mapped_to_init_high_frec); a worker thread maps the newest frame, skipping (and counting) any that
-// arrive while it is busy, so odometry never waits on mapping. Once the mapped pose is out, a thread on
-// the cores' idle time adds the frame to the map and indexes the next submap.
+// arrive while it is busy, so odometry never waits on mapping. Once the mapped pose is out, a thread of
+// its own, started when a core is idle, adds the frame to the map and indexes the next submap.
 #include <atomic>
 #include <condition_variable>
 #include <memory>
