@@ -15,8 +15,8 @@ namespace aloam
 {
 namespace detail
 {
-/// A helper thread that runs one task at a time for the thread that owns it. After a task it stays
-/// awake for a moment: the parallel regions of one sweep follow each other within milliseconds, and
+/// A helper thread that runs one task at a time for the thread its team is lent to. After a task it
+/// stays awake for a moment: the parallel regions of one sweep follow each other within milliseconds, and
 /// waking an idle core costs more than the spin (measured at the sensor rate on a 2-vCPU machine).
 class Helper
 {

@@ -1,11 +1,8 @@
 // The pose problem both matching stages solve: a quaternion and a translation under point residuals.
 #pragma once
 
-#include <memory>
 #include <utility>
 #include <vector>
-
-#include <ceres/ceres.h>
 
 #include "aloam_nodelet/core/lidar_factors.h"
 #include "aloam_nodelet/core/parallel.h"
@@ -35,8 +32,6 @@ public:
 
   /// Takes every found match, lines then planes in point order; returns how many of each.
   std::pair<int, int> addMatches(const MatchSlots& slots);
-  void addLine(const LineMatch& match) { lines_.push_back(match); }
-  void addPlane(const PlaneMatch& match) { planes_.push_back(match); }
   int matchCount() const { return static_cast<int>(lines_.size() + planes_.size()); }
 
   /// Runs at most `max_iterations` Levenberg-Marquardt iterations (none without matches).
