@@ -39,9 +39,9 @@ struct PendingMerge
 // downsampling the cube again would give, since the previous point stands for its voxel).
 void applyMerges(std::vector<PendingMerge>& merges)
 {
-  std::stable_sort(merges.begin(), merges.end(), [](const PendingMerge& a, const PendingMerge& b) {
-    return std::tie(a.layer, a.index) < std::tie(b.layer, b.index);
-  });
+  std::stable_sort(merges.begin(), merges.end(),
+                   [](const PendingMerge& a, const PendingMerge& b)
+                   { return std::tie(a.layer, a.index) < std::tie(b.layer, b.index); });
   for (std::size_t begin = 0; begin < merges.size();)
   {
     Point& target = merges[begin].layer->points[merges[begin].index];

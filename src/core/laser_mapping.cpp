@@ -181,17 +181,19 @@ MappingResult LaserMapping::registerFrame(const OdometryFrame& frame)
   corner_stack_.clear();
   surf_stack_.clear();
   // The two downsamplings are independent: one thread each.
-  parallelChunks(2, config_.threads, 1, [&](int begin, int end, int) {
-    for (int layer = begin; layer < end; ++layer)
-    {
-      const auto& in = layer == 0 ? frame.corners : frame.surfs;
-      if (in)
-      {
-        voxelDownsample(*in, layer == 0 ? config_.corner_leaf_size : config_.surf_leaf_size,
-                        layer == 0 ? corner_stack_ : surf_stack_);
-      }
-    }
-  });
+  parallelChunks(2, config_.threads, 1,
+                 [&](int begin, int end, int)
+                 {
+                   for (int layer = begin; layer < end; ++layer)
+                   {
+                     const auto& in = layer == 0 ? frame.corners : frame.surfs;
+                     if (in)
+                     {
+                       voxelDownsample(*in, layer == 0 ? config_.corner_leaf_size : config_.surf_leaf_size,
+                                       layer == 0 ? corner_stack_ : surf_stack_);
+                     }
+                   }
+                 });
 
   // updateMap() prepared the submap around the previous pose; it serves unless the robot changed cube.
   const CubeIndex centre = map_.indexOf(pose.t);

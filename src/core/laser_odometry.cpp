@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cmath>
 
-
 #include "aloam_nodelet/core/pose_solver.h"
 
 namespace aloam
@@ -62,9 +61,7 @@ std::vector<int> ringBegins(const Cloud& cloud)
   return begins;
 }
 
-LaserOdometry::LaserOdometry(LaserOdometryConfig config) : config_(config)
-{
-}
+LaserOdometry::LaserOdometry(LaserOdometryConfig config) : config_(config) {}
 
 void LaserOdometry::reset()
 {
@@ -260,8 +257,7 @@ OdometryFrame LaserOdometry::track(const std::shared_ptr<const FeatureSet>& feat
       frame.corner_matches = m.corners;
       frame.plane_matches = m.planes;
       frame.constraint = m.constraint;
-      const bool enough = m.corners + m.planes >= config_.min_correspondences &&
-                          m.constraint >= config_.min_constraint;
+      const bool enough = m.corners + m.planes >= config_.min_correspondences && m.constraint >= config_.min_constraint;
       const bool sane = motion.isFinite() && motion.t.norm() <= config_.max_translation_per_sweep;
       if (enough && sane)
       {

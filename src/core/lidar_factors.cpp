@@ -148,26 +148,28 @@ bool MatchResiduals::Evaluate(double const* const* parameters, double* residuals
   const int n_lines = static_cast<int>(lines_.size());
   const int n_all = n_lines + static_cast<int>(planes_.size());
   // Rows: 3 per line match, then 1 per plane match.
-  parallelChunks(n_all, threads_, kMinMatchesPerThread, [&](int begin, int end, int) {
-    for (int i = begin; i < end; ++i)
-    {
-      const bool line = i < n_lines;
-      const int n = line ? 3 : 1;
-      const int row = line ? 3 * i : 3 * n_lines + (i - n_lines);
-      double* r = residuals + row;
-      double* row_q = jq != nullptr ? jq + 4 * row : nullptr;
-      double* row_t = jt != nullptr ? jt + 3 * row : nullptr;
-      if (line)
-      {
-        evaluateLine(lines_[i], pose, r, row_q, row_t);
-      }
-      else
-      {
-        evaluatePlane(planes_[i - n_lines], pose, r, row_q, row_t);
-      }
-      robustify(n, huber_delta_, r, row_q, row_t);
-    }
-  });
+  parallelChunks(n_all, threads_, kMinMatchesPerThread,
+                 [&](int begin, int end, int)
+                 {
+                   for (int i = begin; i < end; ++i)
+                   {
+                     const bool line = i < n_lines;
+                     const int n = line ? 3 : 1;
+                     const int row = line ? 3 * i : 3 * n_lines + (i - n_lines);
+                     double* r = residuals + row;
+                     double* row_q = jq != nullptr ? jq + 4 * row : nullptr;
+                     double* row_t = jt != nullptr ? jt + 3 * row : nullptr;
+                     if (line)
+                     {
+                       evaluateLine(lines_[i], pose, r, row_q, row_t);
+                     }
+                     else
+                     {
+                       evaluatePlane(planes_[i - n_lines], pose, r, row_q, row_t);
+                     }
+                     robustify(n, huber_delta_, r, row_q, row_t);
+                   }
+                 });
   return true;
 }
 

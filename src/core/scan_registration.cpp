@@ -57,12 +57,10 @@ float squaredGap(const Point& a, const Point& b)
 }
 }  // namespace
 
-ScanRegistration::ScanRegistration(ScanRegistrationConfig config) : config_(std::move(config))
-{
-}
+ScanRegistration::ScanRegistration(ScanRegistrationConfig config) : config_(std::move(config)) {}
 
-void ScanRegistration::bucketByRing(const Cloud& cloud, int begin, int end, bool ring_from_field,
-                                    bool time_from_field, Worker& worker)
+void ScanRegistration::bucketByRing(const Cloud& cloud, int begin, int end, bool ring_from_field, bool time_from_field,
+                                    Worker& worker)
 {
   auto& rings = worker.rings;
   auto& azimuths = worker.azimuths;
@@ -221,7 +219,8 @@ void ScanRegistration::markUnreliable(const Cloud& full, int begin, int end, Reg
   const int w = config_.curvature_half_window;
   auto& picked = scratch_.picked;
   const auto& range = scratch_.range;
-  auto mark = [&](int from, int to, std::size_t& counter) {
+  auto mark = [&](int from, int to, std::size_t& counter)
+  {
     for (int k = std::max(from, begin); k <= std::min(to, end - 1); ++k)
     {
       if (picked[k] != kUnreliable)
@@ -310,9 +309,8 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, Worker&
 
   // Edges: the free candidates above the threshold, sharpest first. A heap yields them in that order
   // for the few a sector takes without sorting the whole sector; ties go to the lower index.
-  const auto less_sharp_than = [&](int a, int b) {
-    return curvature[a] < curvature[b] || (curvature[a] == curvature[b] && a > b);
-  };
+  const auto less_sharp_than = [&](int a, int b)
+  { return curvature[a] < curvature[b] || (curvature[a] == curvature[b] && a > b); };
   heap.clear();
   for (int i = begin; i < end; ++i)
   {
@@ -348,9 +346,8 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, Worker&
   }
 
   // Planes: the free candidates below the threshold, flattest first.
-  const auto flatter_than = [&](int a, int b) {
-    return curvature[a] > curvature[b] || (curvature[a] == curvature[b] && a > b);
-  };
+  const auto flatter_than = [&](int a, int b)
+  { return curvature[a] > curvature[b] || (curvature[a] == curvature[b] && a > b); };
   heap.clear();
   for (int i = begin; i < end; ++i)
   {
@@ -386,8 +383,8 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, Worker&
   }
 }
 
-void ScanRegistration::extractRings(const Cloud& full, const std::vector<int>& ring_begin, int first_ring,
-                                    int end_ring, Worker& worker)
+void ScanRegistration::extractRings(const Cloud& full, const std::vector<int>& ring_begin, int first_ring, int end_ring,
+                                    Worker& worker)
 {
   const int w = config_.curvature_half_window;
   const int min_ring_points = 2 * w + 1 + config_.sectors;
@@ -450,17 +447,16 @@ bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, 
   // join ring by ring in input order, as one thread would have produced them.
   const bool ring_from_field = has_ring && config_.use_ring_field;
   const bool time_from_field = has_time && config_.use_time_field;
-  const int parts = cloud.size() < static_cast<std::size_t>(kMinPointsForThreads)
-                        ? 1
-                        : std::clamp(config_.threads, 1, kMaxThreads);
+  const int parts =
+      cloud.size() < static_cast<std::size_t>(kMinPointsForThreads) ? 1 : std::clamp(config_.threads, 1, kMaxThreads);
   workers_.resize(static_cast<std::size_t>(parts));
   for (Worker& worker : workers_)
   {
     worker.stats = RegistrationStats{};
   }
-  parallelChunks(static_cast<int>(cloud.size()), parts, 1, [&](int begin, int end, int part) {
-    bucketByRing(cloud, begin, end, ring_from_field, time_from_field, workers_[part]);
-  });
+  parallelChunks(static_cast<int>(cloud.size()), parts, 1,
+                 [&](int begin, int end, int part)
+                 { bucketByRing(cloud, begin, end, ring_from_field, time_from_field, workers_[part]); });
   double start_azimuth = 0.0;
   bool have_start = false;
   for (const Worker& worker : workers_)
@@ -520,19 +516,21 @@ bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, 
   }
   for (Worker& worker : workers_)
   {
-    for (Cloud* c : { &worker.features.sharp, &worker.features.less_sharp, &worker.features.flat,
-                      &worker.features.less_flat })
+    for (Cloud* c :
+         { &worker.features.sharp, &worker.features.less_sharp, &worker.features.flat, &worker.features.less_flat })
     {
       c->clear();
     }
     worker.stats = RegistrationStats{};
   }
-  parallelChunks(parts, parts, 1, [&](int first, int last, int) {
-    for (int part = first; part < last; ++part)
-    {
-      extractRings(out.full, ring_begin, split[part], split[part + 1], workers_[part]);
-    }
-  });
+  parallelChunks(parts, parts, 1,
+                 [&](int first, int last, int)
+                 {
+                   for (int part = first; part < last; ++part)
+                   {
+                     extractRings(out.full, ring_begin, split[part], split[part + 1], workers_[part]);
+                   }
+                 });
   for (const Worker& worker : workers_)
   {
     const FeatureSet& f = worker.features;

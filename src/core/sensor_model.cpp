@@ -38,9 +38,9 @@ std::vector<double> hdl64Table()
 // VLP-32C beam elevations from the sensor's user manual (non-uniform, dense near the horizon).
 std::vector<double> vlp32cTable()
 {
-  return { -25.0,  -15.639, -11.31, -8.843, -7.254, -6.148, -5.333, -4.667, -4.0,  -3.667, -3.333,
-           -3.0,   -2.667,  -2.333, -2.0,   -1.667, -1.333, -1.0,   -0.667, -0.333, 0.0,  0.333,
-           0.667,  1.0,     1.333,  1.667,  2.333,  3.333,  4.667,  7.0,    10.333, 15.0 };
+  return { -25.0, -15.639, -11.31, -8.843, -7.254, -6.148, -5.333, -4.667, -4.0,   -3.667, -3.333,
+           -3.0,  -2.667,  -2.333, -2.0,   -1.667, -1.333, -1.0,   -0.667, -0.333, 0.0,    0.333,
+           0.667, 1.0,     1.333,  1.667,  2.333,  3.333,  4.667,  7.0,    10.333, 15.0 };
 }
 }  // namespace
 
@@ -104,15 +104,15 @@ SensorModel SensorModel::uniform(int beams, double min_elevation_deg, double max
   {
     throw std::invalid_argument("SensorModel::uniform needs at least one beam");
   }
-  return fromTable(linspace(beams, std::min(min_elevation_deg, max_elevation_deg),
-                            std::max(min_elevation_deg, max_elevation_deg)));
+  return fromTable(
+      linspace(beams, std::min(min_elevation_deg, max_elevation_deg), std::max(min_elevation_deg, max_elevation_deg)));
 }
 
 SensorModel SensorModel::fromTable(std::vector<double> elevations_deg)
 {
-  elevations_deg.erase(std::remove_if(elevations_deg.begin(), elevations_deg.end(),
-                                      [](double e) { return !std::isfinite(e); }),
-                       elevations_deg.end());
+  elevations_deg.erase(
+      std::remove_if(elevations_deg.begin(), elevations_deg.end(), [](double e) { return !std::isfinite(e); }),
+      elevations_deg.end());
   if (elevations_deg.empty())
   {
     throw std::invalid_argument("SensorModel::fromTable needs at least one finite elevation");
@@ -139,7 +139,8 @@ void SensorModel::finalize()
   }
   upper_bounds_deg_[n - 1] = e[n - 1] + outer_high;
   // tan is increasing on (-90, 90) deg, so slopes compare as elevations do.
-  const auto slope = [](double deg) {
+  const auto slope = [](double deg)
+  {
     if (deg >= 90.0)
     {
       return std::numeric_limits<double>::infinity();

@@ -131,8 +131,8 @@ std::vector<VoxelEntry> sortedCells(const Cloud& in, double inverse_leaf)
   keys.reserve(entries.size());
   for (const VoxelEntry& e : entries)
   {
-    const auto key = (std::uint64_t(e.x - lo[0]) << shift_x) | (std::uint64_t(e.y - lo[1]) << shift_y) |
-                     std::uint64_t(e.z - lo[2]);
+    const auto key =
+        (std::uint64_t(e.x - lo[0]) << shift_x) | (std::uint64_t(e.y - lo[1]) << shift_y) | std::uint64_t(e.z - lo[2]);
     keys.emplace_back(key, e.index);
   }
   radixSort(keys, bits[0] + bits[1] + bits[2]);

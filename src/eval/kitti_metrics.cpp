@@ -96,8 +96,8 @@ EvalResult evaluate(const Trajectory& gt, const Trajectory& est, const EvalOptio
     {
       const double length = options.segment_lengths[k];
       // First frame whose distance exceeds dist[first] + length (dist is non-decreasing).
-      const auto it = std::upper_bound(dist.begin() + static_cast<std::ptrdiff_t>(first), dist.end(),
-                                       dist[first] + length);
+      const auto it =
+          std::upper_bound(dist.begin() + static_cast<std::ptrdiff_t>(first), dist.end(), dist[first] + length);
       if (it == dist.end())
       {
         continue;

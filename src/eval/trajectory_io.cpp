@@ -149,9 +149,8 @@ private:
 Trajectory readKittiPoses(const std::string& path)
 {
   Trajectory poses;
-  forEachLine(path, [&](const std::string& line, std::size_t line_number) {
-    poses.push_back(parsePoseLine(line, path, line_number));
-  });
+  forEachLine(path, [&](const std::string& line, std::size_t line_number)
+              { poses.push_back(parsePoseLine(line, path, line_number)); });
   return poses;
 }
 
@@ -190,8 +189,8 @@ void writeTumTrajectory(const std::string& path, const Trajectory& poses, const 
     {
       q.coeffs() *= -1.0;
     }
-    std::fprintf(out.get(), "%.9f %.9e %.9e %.9e %.9e %.9e %.9e %.9e\n", stamps[i], t.x(), t.y(), t.z(), q.x(),
-                 q.y(), q.z(), q.w());
+    std::fprintf(out.get(), "%.9f %.9e %.9e %.9e %.9e %.9e %.9e %.9e\n", stamps[i], t.x(), t.y(), t.z(), q.x(), q.y(),
+                 q.z(), q.w());
   }
   out.close();
 }
@@ -221,13 +220,15 @@ std::vector<double> readTimes(const std::string& path)
 {
   std::vector<double> times;
   std::vector<double> numbers;
-  forEachLine(path, [&](const std::string& line, std::size_t line_number) {
-    if (!parseNumbers(line, numbers) || numbers.size() != 1)
-    {
-      throw std::runtime_error(location(path, line_number) + ": expected one timestamp");
-    }
-    times.push_back(numbers.front());
-  });
+  forEachLine(path,
+              [&](const std::string& line, std::size_t line_number)
+              {
+                if (!parseNumbers(line, numbers) || numbers.size() != 1)
+                {
+                  throw std::runtime_error(location(path, line_number) + ": expected one timestamp");
+                }
+                times.push_back(numbers.front());
+              });
   return times;
 }
 

@@ -149,8 +149,8 @@ void LaserMappingNodelet::onInit()
   pnh.param<std::string>("odom_frame", odom_frame_, "odom");
   pnh.param<std::string>("base_frame", base_frame_, "base_link");
   path_max_poses_ = static_cast<std::size_t>(boundedParam(pnh, name, "path_max_poses", 10000, 1, 1'000'000));
-  trajectory_max_poses_ = static_cast<std::size_t>(
-      boundedParam(pnh, name, "trajectory_max_poses", 1'000'000, 100, 100'000'000));
+  trajectory_max_poses_ =
+      static_cast<std::size_t>(boundedParam(pnh, name, "trajectory_max_poses", 1'000'000, 100, 100'000'000));
   map_publish_period_ = boundedParam(pnh, name, "map_publish_period", map_publish_period_, 0.0, 3600.0);
   surround_every_ = boundedParam(pnh, name, "surround_every", surround_every_, 1, 1000);
   aloam::LaserMappingConfig config;
@@ -178,29 +178,33 @@ void LaserMappingNodelet::onInit()
   save_trajectory_srv_ = pnh.advertiseService("save_trajectory", &LaserMappingNodelet::saveTrajectoryCb, this);
   reset_srv_ = pnh.advertiseService("reset", &LaserMappingNodelet::resetCb, this);
 
-  monitor_.init(nh, pnh, name, [this](diagnostic_updater::DiagnosticStatusWrapper& s) {
-    {
-      std::lock_guard<std::mutex> lock(queue_mutex_);
-      s.add("frames skipped (mapping behind)", skipped_);
-      stamps_.report(s);
-      s.add("odometry restarts (map reset)", odometry_restarts_);
-    }
-    std::lock_guard<std::mutex> lock(core_mutex_);
-    s.add("edge matches", last_result_.corner_matches);
-    s.add("plane matches", last_result_.plane_matches);
-    s.addf("constraint (degenerate below min)", "%.1f", last_result_.constraint);
-    s.add("degraded frames", degraded_frames_);
-    s.add("map edge points", last_result_.map_corners);
-    s.add("map plane points", last_result_.map_surfs);
-    s.add("map cubes", last_result_.cubes);
-    s.add("cubes evicted", mapping_->totalEvictedCubes());
-    if (last_result_.status == aloam::MappingStatus::kDegraded)
-    {
-      s.summary(diagnostic_msgs::DiagnosticStatus::WARN, "degraded: too few or degenerate matches, prediction used");
-    }
-  });
+  monitor_.init(nh, pnh, name,
+                [this](diagnostic_updater::DiagnosticStatusWrapper& s)
+                {
+                  {
+                    std::lock_guard<std::mutex> lock(queue_mutex_);
+                    s.add("frames skipped (mapping behind)", skipped_);
+                    stamps_.report(s);
+                    s.add("odometry restarts (map reset)", odometry_restarts_);
+                  }
+                  std::lock_guard<std::mutex> lock(core_mutex_);
+                  s.add("edge matches", last_result_.corner_matches);
+                  s.add("plane matches", last_result_.plane_matches);
+                  s.addf("constraint (degenerate below min)", "%.1f", last_result_.constraint);
+                  s.add("degraded frames", degraded_frames_);
+                  s.add("map edge points", last_result_.map_corners);
+                  s.add("map plane points", last_result_.map_surfs);
+                  s.add("map cubes", last_result_.cubes);
+                  s.add("cubes evicted", mapping_->totalEvictedCubes());
+                  if (last_result_.status == aloam::MappingStatus::kDegraded)
+                  {
+                    s.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                              "degraded: too few or degenerate matches, prediction used");
+                  }
+                });
   updater_ = std::make_unique<BackgroundWorker>(
-      [this] {
+      [this]
+      {
         std::lock_guard<std::mutex> lock(core_mutex_);
         updateMapLocked();
       });
@@ -234,8 +238,7 @@ void LaserMappingNodelet::frameCb(const aloam::ros_io::StampedOdometryFrame::Con
       // Odometry started a new trajectory at identity (its reset service, a reload, a restarted manager)
       // while the stamps went on: its poses no longer fit this map, and building on would corrupt it.
       ++odometry_restarts_;
-      NODELET_WARN("odometry started a new trajectory (reset or reloaded): map reset (%zu so far)",
-                   odometry_restarts_);
+      NODELET_WARN("odometry started a new trajectory (reset or reloaded): map reset (%zu so far)", odometry_restarts_);
       reset_requested_ = true;
     }
     odometry_running_ = true;
@@ -367,8 +370,10 @@ void LaserMappingNodelet::registerFrameLocked(const aloam::ros_io::StampedOdomet
   if (trajectory_.size() > trajectory_max_poses_ + trajectory_max_poses_ / 10)
   {
     const auto drop = static_cast<long>(trajectory_.size() - trajectory_max_poses_);
-    NODELET_WARN_THROTTLE(kThrottleSeconds, "trajectory longer than trajectory_max_poses = %zu: oldest %ld poses "
-                          "dropped (save_trajectory writes the rest)", trajectory_max_poses_, drop);
+    NODELET_WARN_THROTTLE(kThrottleSeconds,
+                          "trajectory longer than trajectory_max_poses = %zu: oldest %ld poses "
+                          "dropped (save_trajectory writes the rest)",
+                          trajectory_max_poses_, drop);
     trajectory_.erase(trajectory_.begin(), trajectory_.begin() + drop);
     trajectory_stamps_.erase(trajectory_stamps_.begin(), trajectory_stamps_.begin() + drop);
   }
@@ -438,8 +443,8 @@ void LaserMappingNodelet::publishClouds(const aloam::ros_io::StampedOdometryFram
   {
     const aloam::LaserMappingConfig& config = mapping_->config();
     aloam::Cloud corners, surfs;
-    mapping_->map().gather(mapping_->map().indexOf(result.pose.t), config.submap_half_xy, config.submap_half_z,
-                           corners, surfs);
+    mapping_->map().gather(mapping_->map().indexOf(result.pose.t), config.submap_half_xy, config.submap_half_z, corners,
+                           surfs);
     corners += surfs;
     publishCloudIfSubscribed(surround_pub_, corners, header);
   }
@@ -500,8 +505,8 @@ bool LaserMappingNodelet::saveMapCb(SaveMap::Request& request, SaveMap::Response
       NODELET_WARN("save_map: %s", e.what());
     }
     response.success = written;
-    response.message = written ? "wrote " + std::to_string(all.size()) + " points to " + request.path
-                               : "cannot write " + request.path;
+    response.message =
+        written ? "wrote " + std::to_string(all.size()) + " points to " + request.path : "cannot write " + request.path;
   }
   return true;
 }

@@ -76,15 +76,16 @@ void LaserOdometryNodelet::onInit()
   path_max_poses_ = static_cast<std::size_t>(boundedParam(pnh, name, "path_max_poses", 10000, 1, 1'000'000));
   odometry_ = std::make_unique<aloam::LaserOdometry>(config);
   indexer_ = std::make_unique<BackgroundWorker>(
-      [this] {
+      [this]
+      {
         std::lock_guard<std::mutex> lock(mutex_);
         odometry_->indexLast();
       });
   path_.header.frame_id = world_frame_;
   stamps_.setConfig(stampCheckParams(pnh, name));
   const double index_wait = boundedParam(pnh, name, "index_wait", 0.5 * stamps_.config().scan_period, 0.0, 1.0);
-  index_wait_ = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-      std::chrono::duration<double>(index_wait));
+  index_wait_ =
+      std::chrono::duration_cast<std::chrono::steady_clock::duration>(std::chrono::duration<double>(index_wait));
 
   warnOutOfRange<LaserOdometryConfig>(pnh, name);
   reconfigure_server_ = std::make_unique<dynamic_reconfigure::Server<LaserOdometryConfig>>(pnh);
@@ -97,18 +98,21 @@ void LaserOdometryNodelet::onInit()
   surf_pub_ = nh.advertise<sensor_msgs::PointCloud2>("laser_cloud_surf_last", 2);
   full_pub_ = nh.advertise<sensor_msgs::PointCloud2>("velodyne_cloud_3", 2);
   reset_srv_ = pnh.advertiseService("reset", &LaserOdometryNodelet::resetCb, this);
-  monitor_.init(nh, pnh, name, [this](diagnostic_updater::DiagnosticStatusWrapper& s) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    s.add("edge matches", last_frame_.corner_matches);
-    s.add("plane matches", last_frame_.plane_matches);
-    s.addf("constraint (degenerate below min)", "%.1f", last_frame_.constraint);
-    s.add("degraded frames", degraded_frames_);
-    stamps_.report(s);
-    if (last_frame_.status == aloam::OdometryStatus::kDegraded)
-    {
-      s.summary(diagnostic_msgs::DiagnosticStatus::WARN, "degraded: too few or degenerate matches, motion prior used");
-    }
-  });
+  monitor_.init(nh, pnh, name,
+                [this](diagnostic_updater::DiagnosticStatusWrapper& s)
+                {
+                  std::lock_guard<std::mutex> lock(mutex_);
+                  s.add("edge matches", last_frame_.corner_matches);
+                  s.add("plane matches", last_frame_.plane_matches);
+                  s.addf("constraint (degenerate below min)", "%.1f", last_frame_.constraint);
+                  s.add("degraded frames", degraded_frames_);
+                  stamps_.report(s);
+                  if (last_frame_.status == aloam::OdometryStatus::kDegraded)
+                  {
+                    s.summary(diagnostic_msgs::DiagnosticStatus::WARN,
+                              "degraded: too few or degenerate matches, motion prior used");
+                  }
+                });
   features_sub_ = nh.subscribe("laser_features", 2, &LaserOdometryNodelet::featuresCb, this);
   if (index_wait_ > std::chrono::steady_clock::duration::zero())
   {
@@ -188,9 +192,10 @@ bool LaserOdometryNodelet::admit(const ros::Time& stamp)
     case aloam::StampVerdict::kGap:
       if (stamps_.warningDue(verdict))
       {
-        NODELET_WARN("%.3f s since the last sweep (more than %.0f periods): motion prior reset, the sweep is "
-                     "matched from rest (%zu gaps so far)",
-                     stamps_.lastStep(), stamps_.config().max_gap_sweeps, stamps_.counts().gaps);
+        NODELET_WARN(
+            "%.3f s since the last sweep (more than %.0f periods): motion prior reset, the sweep is "
+            "matched from rest (%zu gaps so far)",
+            stamps_.lastStep(), stamps_.config().max_gap_sweeps, stamps_.counts().gaps);
       }
       odometry_->resetMotionPrior();
       return true;

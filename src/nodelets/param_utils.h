@@ -16,8 +16,8 @@ T clamped(const std::string& logger, const std::string& name, T value, T lo, T h
   const T result = std::min(std::max(value, lo), hi);
   if (result != value)
   {
-    ROS_WARN_STREAM_NAMED(logger, "parameter " << name << " = " << value << " is outside [" << lo << ", " << hi
-                                                << "]; using " << result);
+    ROS_WARN_STREAM_NAMED(
+        logger, "parameter " << name << " = " << value << " is outside [" << lo << ", " << hi << "]; using " << result);
   }
   return result;
 }
@@ -60,7 +60,7 @@ void warnOutOfRange(const ros::NodeHandle& pnh, const std::string& logger)
     if (value < min || value > max)
     {
       ROS_WARN_STREAM_NAMED(logger, "parameter " << description->name << " = " << value << " is outside [" << min
-                                                  << ", " << max << "]; clamped");
+                                                 << ", " << max << "]; clamped");
     }
   }
 }

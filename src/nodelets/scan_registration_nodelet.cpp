@@ -33,7 +33,7 @@ private:
   std::mutex mutex_;  // guards the core and its configuration
   std::unique_ptr<aloam::ScanRegistration> registration_;
   aloam::ros_io::ReaderOptions reader_options_;
-  aloam::Cloud input_;  // reused between sweeps
+  aloam::Cloud input_;                                           // reused between sweeps
   double min_elevation_deg_ = -15.0, max_elevation_deg_ = 15.0;  // for a beam count instead of a preset
   StampGuard stamps_;  // drops duplicate and late sweeps before any work is done on them
   aloam::RegistrationStats last_stats_;
@@ -84,8 +84,7 @@ void ScanRegistrationNodelet::onInit()
 
   warnOutOfRange<ScanRegistrationConfig>(pnh, name);
   reconfigure_server_ = std::make_unique<dynamic_reconfigure::Server<ScanRegistrationConfig>>(pnh);
-  reconfigure_server_->setCallback(
-      [this](ScanRegistrationConfig& c, std::uint32_t level) { reconfigureCb(c, level); });
+  reconfigure_server_->setCallback([this](ScanRegistrationConfig& c, std::uint32_t level) { reconfigureCb(c, level); });
 
   features_pub_ = nh.advertise<aloam::ros_io::StampedFeatureSet>("laser_features", 2);
   sharp_pub_ = nh.advertise<sensor_msgs::PointCloud2>("laser_cloud_sharp", 2);
@@ -93,18 +92,20 @@ void ScanRegistrationNodelet::onInit()
   flat_pub_ = nh.advertise<sensor_msgs::PointCloud2>("laser_cloud_flat", 2);
   less_flat_pub_ = nh.advertise<sensor_msgs::PointCloud2>("laser_cloud_less_flat", 2);
   full_pub_ = nh.advertise<sensor_msgs::PointCloud2>("velodyne_cloud_2", 2);
-  monitor_.init(nh, pnh, name, [this](diagnostic_updater::DiagnosticStatusWrapper& s) {
-    std::lock_guard<std::mutex> lock(mutex_);
-    s.add("points in", last_stats_.points_in);
-    s.add("points used", last_stats_.points_used);
-    s.add("points on no ring", last_stats_.unassigned_ring);
-    s.add("points NaN/Inf", last_stats_.invalid);
-    s.add("points out of range", last_stats_.out_of_range);
-    s.add("rings", last_stats_.rings);
-    s.addf("features (sharp, less sharp, flat, less flat)", "%zu, %zu, %zu, %zu", last_features_[0],
-           last_features_[1], last_features_[2], last_features_[3]);
-    stamps_.report(s);
-  });
+  monitor_.init(nh, pnh, name,
+                [this](diagnostic_updater::DiagnosticStatusWrapper& s)
+                {
+                  std::lock_guard<std::mutex> lock(mutex_);
+                  s.add("points in", last_stats_.points_in);
+                  s.add("points used", last_stats_.points_used);
+                  s.add("points on no ring", last_stats_.unassigned_ring);
+                  s.add("points NaN/Inf", last_stats_.invalid);
+                  s.add("points out of range", last_stats_.out_of_range);
+                  s.add("rings", last_stats_.rings);
+                  s.addf("features (sharp, less sharp, flat, less flat)", "%zu, %zu, %zu, %zu", last_features_[0],
+                         last_features_[1], last_features_[2], last_features_[3]);
+                  stamps_.report(s);
+                });
   // Queue of one: always the newest sweep.
   points_sub_ = nh.subscribe("velodyne_points", 1, &ScanRegistrationNodelet::pointsCb, this);
 }

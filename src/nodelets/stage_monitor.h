@@ -26,7 +26,8 @@ public:
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh, name);
     updater_->setHardwareID("aloam_nodelet");
     updater_->add(name, [this](diagnostic_updater::DiagnosticStatusWrapper& s) { produce(s); });
-    timer_ = nh.createTimer(ros::Duration(updater_->getPeriod()), [this](const ros::TimerEvent&) { updater_->update(); });
+    timer_ =
+        nh.createTimer(ros::Duration(updater_->getPeriod()), [this](const ros::TimerEvent&) { updater_->update(); });
   }
 
   /// Records one processed frame that took `milliseconds`, then lets the updater publish if it is due.

@@ -118,7 +118,7 @@ void fromWire(const aloam_nodelet::OdometryFrame& in, StampedOdometryFrame& out)
   f.pose = fromPoseMsg(in.pose);
   f.motion = fromPoseMsg(in.motion);
   f.status = in.status <= static_cast<std::uint8_t>(OdometryStatus::kDegraded) ? static_cast<OdometryStatus>(in.status)
-                                                                                : OdometryStatus::kDegraded;
+                                                                               : OdometryStatus::kDegraded;
   f.distorted = in.distorted;
   f.corner_matches = in.corner_matches;
   f.plane_matches = in.plane_matches;

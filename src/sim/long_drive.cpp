@@ -18,7 +18,8 @@ constexpr double kGroundHalfWidth = 250.0;
 std::optional<Shape> shiftedAlongX(const Shape& shape, double offset)
 {
   return std::visit(
-      [offset](const auto& s) -> std::optional<Shape> {
+      [offset](const auto& s) -> std::optional<Shape>
+      {
         using T = std::decay_t<decltype(s)>;
         const Eigen::Vector3d dx(offset, 0.0, 0.0);
         if constexpr (std::is_same_v<T, OrientedBox>)
@@ -130,7 +131,8 @@ Cloud LongDrive::sweep(long k, const SensorModel& sensor)
   scan.range_noise_sigma = options_.range_noise_sigma;
   scan.seed = tileSeed(options_.seed, k);
   const double start = static_cast<double>(k) * options_.scan_period;
-  Cloud cloud = aloam::sim::scan(scene, sensor, [&](double t) { return poseAt(start + t); }, scan);
+  Cloud cloud = aloam::sim::scan(
+      scene, sensor, [&](double t) { return poseAt(start + t); }, scan);
   if (options_.column_step > 1)
   {
     // Column c fired at c / columns of the sweep (see aloam::sim::scan).

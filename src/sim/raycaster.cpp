@@ -56,8 +56,8 @@ private:
 };
 }  // namespace
 
-Cloud scan(const Scene& scene, const SensorModel& model, const PoseFunction& sensor_pose_at,
-           const ScanOptions& options, std::vector<int>* surface_ids)
+Cloud scan(const Scene& scene, const SensorModel& model, const PoseFunction& sensor_pose_at, const ScanOptions& options,
+           std::vector<int>* surface_ids)
 {
   const int rings = model.numRings();
   const int columns = model.columns();
@@ -127,7 +127,8 @@ Cloud scan(const Scene& scene, const SensorModel& model, const PoseFunction& sen
       point.x = static_cast<float>(p.x());
       point.y = static_cast<float>(p.y());
       point.z = static_cast<float>(p.z());
-      point.intensity = static_cast<float>(std::clamp(kMaxIntensity * reflectivity * cos_incidence, 0.0, kMaxIntensity));
+      point.intensity =
+          static_cast<float>(std::clamp(kMaxIntensity * reflectivity * cos_incidence, 0.0, kMaxIntensity));
       point.time = static_cast<float>(t);
       point.ring = static_cast<std::uint16_t>(r);
       cloud.push_back(point);

@@ -31,30 +31,30 @@ constexpr double kSimpleBoxHalfY = 3.0;
 constexpr double kSimpleBoxHeight = 3.0;
 
 // urbanStreet() details not worth an option.
-constexpr double kSidewalkBackExtra = 1.0;     // sidewalk runs this far under the buildings
-constexpr double kMinBuildingLength = 3.0;     // shorter leftovers at the street ends are skipped
-constexpr double kFacadeStepSplitMin = 0.3;    // split position of a stepped facade, fraction of length
+constexpr double kSidewalkBackExtra = 1.0;   // sidewalk runs this far under the buildings
+constexpr double kMinBuildingLength = 3.0;   // shorter leftovers at the street ends are skipped
+constexpr double kFacadeStepSplitMin = 0.3;  // split position of a stepped facade, fraction of length
 constexpr double kFacadeStepSplitMax = 0.7;
-constexpr double kReflectivityJitter = 0.1;    // per-primitive variation around the class default
+constexpr double kReflectivityJitter = 0.1;  // per-primitive variation around the class default
 constexpr double kMinReflectivity = 0.05;
 constexpr double kCarLengthMin = 4.0;
 constexpr double kCarLengthMax = 4.9;
 constexpr double kCarWidthMin = 1.7;
 constexpr double kCarWidthMax = 1.95;
-constexpr double kCarClearance = 0.25;         // underbody height above ground
+constexpr double kCarClearance = 0.25;  // underbody height above ground
 constexpr double kCarBodyHeightMin = 0.7;
 constexpr double kCarBodyHeightMax = 0.95;
 constexpr double kCarCabinHeightMin = 0.45;
 constexpr double kCarCabinHeightMax = 0.65;
 constexpr double kCarCabinLengthFraction = 0.55;
-constexpr double kCarCabinRearShift = 0.08;    // cabin offset towards the rear, fraction of length
+constexpr double kCarCabinRearShift = 0.08;  // cabin offset towards the rear, fraction of length
 constexpr double kCarCabinWidthFraction = 0.9;
-constexpr double kCarCurbGap = 0.3;            // between the curb and the car side
-constexpr double kCarSlotJitter = 0.5;         // longitudinal placement noise within a slot
-constexpr double kCarYawJitter = 0.05;         // rad
-constexpr double kPoleCurbOffset = 0.5;        // poles stand this far behind the curb
-constexpr double kTreeCurbOffset = 1.8;        // trees stand this far behind the curb
-constexpr double kCrownCenterAboveTrunk = 0.7; // crown center above the trunk top, fraction of radius
+constexpr double kCarCurbGap = 0.3;             // between the curb and the car side
+constexpr double kCarSlotJitter = 0.5;          // longitudinal placement noise within a slot
+constexpr double kCarYawJitter = 0.05;          // rad
+constexpr double kPoleCurbOffset = 0.5;         // poles stand this far behind the curb
+constexpr double kTreeCurbOffset = 1.8;         // trees stand this far behind the curb
+constexpr double kCrownCenterAboveTrunk = 0.7;  // crown center above the trunk top, fraction of radius
 
 double jitteredReflectivity(SurfaceClass surface_class, DeterministicRng& rng)
 {
@@ -184,8 +184,7 @@ Aabb PlanePatch::bounds() const
 OrientedBox::OrientedBox(const Eigen::Vector3d& center, const Eigen::Vector3d& half_extents, double yaw)
   : center_(center), half_extents_(half_extents), yaw_(yaw), cos_yaw_(std::cos(yaw)), sin_yaw_(std::sin(yaw))
 {
-  if (!center.allFinite() || !half_extents.allFinite() || !(half_extents.array() > 0.0).all() ||
-      !std::isfinite(yaw))
+  if (!center.allFinite() || !half_extents.allFinite() || !(half_extents.array() > 0.0).all() || !std::isfinite(yaw))
   {
     throw std::invalid_argument("OrientedBox needs a finite center and yaw and positive half extents");
   }
@@ -549,9 +548,8 @@ void Scene::rebuildGrid(const Aabb& extent)
 
 void Scene::cellRange(const Aabb& box, int* ix0, int* iy0, int* ix1, int* iy1) const
 {
-  const auto cell = [this](double v, double v0, int n) {
-    return std::clamp(static_cast<int>(std::floor((v - v0) / cell_size_)), 0, n - 1);
-  };
+  const auto cell = [this](double v, double v0, int n)
+  { return std::clamp(static_cast<int>(std::floor((v - v0) / cell_size_)), 0, n - 1); };
   *ix0 = cell(box.min.x(), grid_x0_, grid_nx_);
   *ix1 = cell(box.max.x(), grid_x0_, grid_nx_);
   *iy0 = cell(box.min.y(), grid_y0_, grid_ny_);
@@ -752,13 +750,13 @@ Scene Scene::urbanStreet(unsigned seed, const UrbanStreetOptions& o)
 {
   DeterministicRng rng(seed);
   std::vector<Primitive> primitives;
-  const auto add = [&](Shape shape, SurfaceClass surface_class) {
+  const auto add = [&](Shape shape, SurfaceClass surface_class)
+  {
     const double reflectivity = jitteredReflectivity(surface_class, rng);
     primitives.emplace_back(std::move(shape), surface_class, reflectivity);
   };
-  const auto box = [](double cx, double cy, double cz, double hx, double hy, double hz, double yaw = 0.0) {
-    return OrientedBox(Eigen::Vector3d(cx, cy, cz), Eigen::Vector3d(hx, hy, hz), yaw);
-  };
+  const auto box = [](double cx, double cy, double cz, double hx, double hy, double hz, double yaw = 0.0)
+  { return OrientedBox(Eigen::Vector3d(cx, cy, cz), Eigen::Vector3d(hx, hy, hz), yaw); };
 
   const double x_begin = -o.end_margin_m;
   const double x_end = o.length_m + o.end_margin_m;
@@ -784,7 +782,8 @@ Scene Scene::urbanStreet(unsigned seed, const UrbanStreetOptions& o)
 
     // Buildings: blocks along the street, some with a stepped facade, with gaps (alleys) between.
     const double facade_line = half_width + o.sidewalk_width_m;
-    const auto building = [&](double x0, double len, double setback, double depth, double height) {
+    const auto building = [&](double x0, double len, double setback, double depth, double height)
+    {
       const double facade_y = facade_line + setback;
       add(box(x0 + 0.5 * len, side * (facade_y + 0.5 * depth), 0.5 * height, 0.5 * len, 0.5 * depth, 0.5 * height),
           SurfaceClass::Building);

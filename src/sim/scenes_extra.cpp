@@ -16,12 +16,12 @@ namespace
 {
 constexpr int kChordsPerVerticalCurve = 4;  // chords approximating each rounded kink of the hill
 constexpr double kBreakpointTolerance = 1e-9;
-constexpr double kDoorHeight = 2.1;          // metres
-constexpr double kDoorBackThickness = 0.1;   // metres, the door leaf behind the recess
-constexpr double kNicheProbability = 0.3;    // a feature is a full-height niche instead of a door
-constexpr double kNicheWidth = 1.5;          // metres
-constexpr double kNicheDepth = 0.6;          // metres
-constexpr double kCorridorFloorMargin = 2.0; // metres, floor and ceiling run past the walls
+constexpr double kDoorHeight = 2.1;           // metres
+constexpr double kDoorBackThickness = 0.1;    // metres, the door leaf behind the recess
+constexpr double kNicheProbability = 0.3;     // a feature is a full-height niche instead of a door
+constexpr double kNicheWidth = 1.5;           // metres
+constexpr double kNicheDepth = 0.6;           // metres
+constexpr double kCorridorFloorMargin = 2.0;  // metres, floor and ceiling run past the walls
 constexpr double kLightHalfExtentX = 0.3;
 constexpr double kLightHalfExtentY = 0.15;
 constexpr double kLightHalfExtentZ = 0.05;
@@ -141,8 +141,7 @@ Scene corridorScene(unsigned seed, const CorridorOptions& o)
   const double x_hi = o.length_m + o.wall_thickness_m + kCorridorFloorMargin;
   scene.add(PlanePatch::horizontal(0.0, x_lo, x_hi, -outer - kCorridorFloorMargin, outer + kCorridorFloorMargin),
             SurfaceClass::Ground);
-  scene.add(PlanePatch::horizontal(o.height_m, x_lo, x_hi, -outer - kCorridorFloorMargin,
-                                   outer + kCorridorFloorMargin),
+  scene.add(PlanePatch::horizontal(o.height_m, x_lo, x_hi, -outer - kCorridorFloorMargin, outer + kCorridorFloorMargin),
             SurfaceClass::Building);
   // End walls.
   scene.add(boxFromCorners(-o.wall_thickness_m, 0.0, -outer, outer, 0.0, o.height_m), SurfaceClass::Building);
@@ -170,9 +169,9 @@ Scene corridorScene(unsigned seed, const CorridorOptions& o)
       if (niche)
       {
         const double niche_back = side * (half_width + kNicheDepth);
-        scene.add(boxFromCorners(gap_start, gap_end, niche_back, niche_back + side * o.wall_thickness_m, 0.0,
-                                 o.height_m),
-                  SurfaceClass::Building);
+        scene.add(
+            boxFromCorners(gap_start, gap_end, niche_back, niche_back + side * o.wall_thickness_m, 0.0, o.height_m),
+            SurfaceClass::Building);
       }
       else
       {

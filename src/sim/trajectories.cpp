@@ -47,8 +47,7 @@ double ramp(double x, double center, double half_blend)
 /// Rotation of a vehicle with the given heading (about z) and pitch (nose up positive).
 Eigen::Matrix3d headingPitch(double heading, double pitch_up)
 {
-  return (Eigen::AngleAxisd(heading, Eigen::Vector3d::UnitZ()) *
-          Eigen::AngleAxisd(-pitch_up, Eigen::Vector3d::UnitY()))
+  return (Eigen::AngleAxisd(heading, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(-pitch_up, Eigen::Vector3d::UnitY()))
       .toRotationMatrix();
 }
 
@@ -131,7 +130,8 @@ double GroundProfile::slopeAt(double x) const
 
 PoseFunction carDrive(const CarDriveOptions& options)
 {
-  return [options](double t) {
+  return [options](double t)
+  {
     const double omega = 2.0 * kPi / options.weave_period_s;
     const double x = options.start_x + options.speed * t;
     const double y = options.weave_amplitude_m * std::sin(omega * t);
@@ -161,8 +161,7 @@ double handHeldYawRate(const HandHeldOptions& options, double t)
   }
   const long index = static_cast<long>(std::floor(since_first / options.burst_interval_s));
   const double tau = since_first - static_cast<double>(index) * options.burst_interval_s;
-  return burstSign(index) * options.burst_rate_rad_s *
-         burstRate(tau, options.burst_duration_s, options.burst_edge_s);
+  return burstSign(index) * options.burst_rate_rad_s * burstRate(tau, options.burst_duration_s, options.burst_edge_s);
 }
 
 double handHeldYaw(const HandHeldOptions& options, double t)
@@ -175,13 +174,14 @@ double handHeldYaw(const HandHeldOptions& options, double t)
   const long index = static_cast<long>(std::floor(since_first / options.burst_interval_s));
   const double tau = since_first - static_cast<double>(index) * options.burst_interval_s;
   const double turn = options.burst_rate_rad_s * options.burst_duration_s;
-  return turn * completedTurns(index) + burstSign(index) * options.burst_rate_rad_s *
-                                            burstAngle(tau, options.burst_duration_s, options.burst_edge_s);
+  return turn * completedTurns(index) +
+         burstSign(index) * options.burst_rate_rad_s * burstAngle(tau, options.burst_duration_s, options.burst_edge_s);
 }
 
 PoseFunction handHeld(const HandHeldOptions& options)
 {
-  return [options](double t) {
+  return [options](double t)
+  {
     const double x = options.start_x + options.speed * t;
     const double bob_phase = 2.0 * kPi * options.bob_frequency_hz * t;
     // Roll sways once per two steps (half the bobbing frequency).
@@ -206,7 +206,8 @@ PoseFunction handHeld(double speed, const GroundProfile& ground)
 
 PoseFunction straight(const StraightOptions& options)
 {
-  return [options](double t) {
+  return [options](double t)
+  {
     const double x = options.start_x + options.speed * t;
     Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
     pose.linear() = headingPitch(0.0, std::atan(options.ground.slopeAt(x)));

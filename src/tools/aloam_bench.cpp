@@ -227,7 +227,8 @@ void runWorkload(const Workload& w, double pace_hz, int threads)
     if ((i + 1) % every == 0 || i + 1 == w.size())
     {
       // Cost against map extent: the block's mean times beside the map size.
-      const auto block_mean = [&](const std::vector<double>& v) {
+      const auto block_mean = [&](const std::vector<double>& v)
+      {
         const std::size_t n = std::min<std::size_t>(v.size(), i + 1 - block_start);
         return n == 0 ? 0.0 : std::accumulate(v.end() - long(n), v.end(), 0.0) / double(n);
       };
@@ -273,8 +274,8 @@ void runWorkload(const Workload& w, double pace_hz, int threads)
     try
     {
       const aloam::eval::EvalResult r = aloam::eval::evaluate(w.truth, rebased, w.eval);
-      std::printf("  accuracy       drift %.3f %%, rotation %.3f deg/100 m, ATE %.3f m\n",
-                  r.translation_drift_percent, r.rotation_deg_per_100m, r.ate_rmse_m);
+      std::printf("  accuracy       drift %.3f %%, rotation %.3f deg/100 m, ATE %.3f m\n", r.translation_drift_percent,
+                  r.rotation_deg_per_100m, r.ate_rmse_m);
     }
     catch (const std::exception& e)
     {
@@ -333,8 +334,8 @@ Workload simulatedDrive(const std::string& sensor_name, int sweeps, const std::s
   aloam::sim::CarDriveOptions car;
   const aloam::sim::PoseFunction pose_at = aloam::sim::carDrive(car);
   const double length = car.start_x + car.speed * kSweepPeriod * (sweeps + 1) + 100.0;
-  std::fprintf(stderr, "aloam_bench: simulating %d %s sweeps (%.1f km of street)...\n", sweeps,
-               sensor_name.c_str(), length / 1e3);
+  std::fprintf(stderr, "aloam_bench: simulating %d %s sweeps (%.1f km of street)...\n", sweeps, sensor_name.c_str(),
+               length / 1e3);
   const aloam::sim::Scene scene = aloam::sim::urbanStreetWithHill(kSimSeed, length, car.ground);
   const Eigen::Isometry3d first_end = pose_at(kSweepPeriod);
   for (int k = 0; k < sweeps; ++k)
@@ -344,7 +345,8 @@ Workload simulatedDrive(const std::string& sensor_name, int sweeps, const std::s
     scan.range_noise_sigma = 0.01;
     scan.seed = kSimSeed * 100003u + static_cast<unsigned>(k);
     Sweep s;
-    s.cloud = aloam::sim::scan(scene, sensor, [&](double t) { return pose_at(start + t); }, scan);
+    s.cloud = aloam::sim::scan(
+        scene, sensor, [&](double t) { return pose_at(start + t); }, scan);
     if (sensor.ringFieldFromTop())
     {
       // As ouster_ros numbers its rows: from the highest beam down.
@@ -381,7 +383,8 @@ Workload longDrive(int sweeps)
     w.truth.push_back(first_end.inverse() * drive->sweepEndPose(k));
   }
   w.generated_count = static_cast<std::size_t>(sweeps);
-  w.generate = [drive, sensor](std::size_t k, Sweep& s) {
+  w.generate = [drive, sensor](std::size_t k, Sweep& s)
+  {
     s.cloud = drive->sweep(static_cast<long>(k), sensor);
     s.stamp = drive->sweepStamp(static_cast<long>(k));
   };
@@ -440,7 +443,8 @@ int runLive(const Options& o)
   std::map<std::uint64_t, Eigen::Isometry3d> poses;
   ros::Subscriber sub = nh.subscribe<nav_msgs::Odometry>(
       o.answer, 100,
-      [&](const nav_msgs::Odometry::ConstPtr& msg) {
+      [&](const nav_msgs::Odometry::ConstPtr& msg)
+      {
         const double now = nowMs();
         std::lock_guard<std::mutex> lock(mutex);
         const std::uint64_t key = msg->header.stamp.toNSec();
@@ -471,7 +475,8 @@ int runLive(const Options& o)
   }
   std::fprintf(stderr, "aloam_bench --live: waiting for a subscriber on %s...\n", pub.getTopic().c_str());
   const ros::WallTime wait_until = ros::WallTime::now() + ros::WallDuration(30.0);
-  while (ros::ok() && (pub.getNumSubscribers() == 0 || sub.getNumPublishers() == 0) && ros::WallTime::now() < wait_until)
+  while (ros::ok() && (pub.getNumSubscribers() == 0 || sub.getNumPublishers() == 0) &&
+         ros::WallTime::now() < wait_until)
   {
     ros::WallDuration(0.05).sleep();
   }
@@ -552,25 +557,38 @@ bool parse(int argc, char** argv, Options& o)
   for (int i = 1; i < argc; ++i)
   {
     const std::string arg = argv[i];
-    const auto value = [&]() -> std::string {
+    const auto value = [&]() -> std::string
+    {
       if (i + 1 >= argc)
       {
         throw std::invalid_argument(arg + " needs a value");
       }
       return argv[++i];
     };
-    if (arg == "--kitti") o.kitti = value();
-    else if (arg == "--sim-sweeps") o.sim_sweeps = std::stoi(value());
-    else if (arg == "--long-sweeps") o.long_sweeps = std::stoi(value());
-    else if (arg == "--only") o.only = value();
-    else if (arg == "--pace") o.pace_hz = std::stod(value());
-    else if (arg == "--threads") o.threads = std::stoi(value());
-    else if (arg == "--live") o.live = true;
-    else if (arg == "--rate") o.rate = std::stod(value());
-    else if (arg == "--topic") o.topic = value();
-    else if (arg == "--answer") o.answer = value();
-    else if (arg == "-h" || arg == "--help") return false;
-    else throw std::invalid_argument("unknown argument " + arg);
+    if (arg == "--kitti")
+      o.kitti = value();
+    else if (arg == "--sim-sweeps")
+      o.sim_sweeps = std::stoi(value());
+    else if (arg == "--long-sweeps")
+      o.long_sweeps = std::stoi(value());
+    else if (arg == "--only")
+      o.only = value();
+    else if (arg == "--pace")
+      o.pace_hz = std::stod(value());
+    else if (arg == "--threads")
+      o.threads = std::stoi(value());
+    else if (arg == "--live")
+      o.live = true;
+    else if (arg == "--rate")
+      o.rate = std::stod(value());
+    else if (arg == "--topic")
+      o.topic = value();
+    else if (arg == "--answer")
+      o.answer = value();
+    else if (arg == "-h" || arg == "--help")
+      return false;
+    else
+      throw std::invalid_argument("unknown argument " + arg);
   }
   if (o.sim_sweeps < 2 || o.long_sweeps < 2 || !(o.rate > 0.0))
   {
@@ -603,10 +621,11 @@ int main(int argc, char** argv)
     return runLive(o);
   }
 
-  std::printf("aloam_bench: the stages as the nodelets run them (%d thread(s) each%s); 'to the pose' is\n"
-              "registration + odometry + mapping (what a robot waits for), 'map update' comes after the pose\n"
-              "is published. cpu = CPU time of the stage's own thread.\n",
-              o.threads, o.pace_hz > 0.0 ? ", paced" : ", back to back");
+  std::printf(
+      "aloam_bench: the stages as the nodelets run them (%d thread(s) each%s); 'to the pose' is\n"
+      "registration + odometry + mapping (what a robot waits for), 'map update' comes after the pose\n"
+      "is published. cpu = CPU time of the stage's own thread.\n",
+      o.threads, o.pace_hz > 0.0 ? ", paced" : ", back to back");
   const auto wanted = [&](const std::string& what) { return o.only.empty() || o.only == what; };
   if (wanted("kitti"))
   {

@@ -154,8 +154,8 @@ void printReport(const Arguments& args, const aloam::eval::EvalResult& result, s
   std::printf("ground truth : %s%s\n", args.gt_path.c_str(),
               args.calib_path.empty() ? " (lidar poses)" : " (camera poses, converted with calib Tr)");
   std::printf("trajectory   : %s\n", args.trajectory_path.c_str());
-  std::printf("frames evaluated: %zu (frames %zu..%zu of %zu)\n", result.frames, args.options.start,
-              total_frames - 1, total_frames);
+  std::printf("frames evaluated: %zu (frames %zu..%zu of %zu)\n", result.frames, args.options.start, total_frames - 1,
+              total_frames);
   std::printf("segments: %zu (step %zu)\n", result.segments, args.options.step);
   std::printf("%10s %8s %12s %16s\n", "length_m", "count", "t_err_%", "r_err_deg/100m");
   for (const aloam::eval::LengthStats& stats : result.per_length)
@@ -177,8 +177,8 @@ int run(const Arguments& args)
   {
     gt = aloam::eval::readKittiPoses(args.gt_path);
     est = aloam::eval::readKittiPoses(args.trajectory_path);
-    const Eigen::Isometry3d tr = args.calib_path.empty() ? Eigen::Isometry3d::Identity() :
-                                                           aloam::eval::readKittiCalibTr(args.calib_path);
+    const Eigen::Isometry3d tr =
+        args.calib_path.empty() ? Eigen::Isometry3d::Identity() : aloam::eval::readKittiCalibTr(args.calib_path);
     // With tr = identity this only re-bases the GT to its first frame.
     gt = aloam::eval::cameraToLidar(gt, tr);
   }

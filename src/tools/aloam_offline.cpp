@@ -192,7 +192,8 @@ bool parse(int argc, char** argv, Options& o)
   for (int i = 1; i < argc; ++i)
   {
     const std::string arg = argv[i];
-    auto value = [&](std::string& out) {
+    auto value = [&](std::string& out)
+    {
       if (i + 1 >= argc)
       {
         throw std::invalid_argument(arg + " needs a value");
@@ -200,14 +201,22 @@ bool parse(int argc, char** argv, Options& o)
       out = argv[++i];
     };
     std::string number;
-    if (arg == "--kitti") value(o.kitti_dir);
-    else if (arg == "--bag") value(o.bag_file);
-    else if (arg == "--topic") value(o.topic);
-    else if (arg == "--sensor") value(o.sensor);
-    else if (arg == "--trajectory") value(o.trajectory);
-    else if (arg == "--tum") value(o.tum);
-    else if (arg == "--map") value(o.map);
-    else if (arg == "--deskew") o.deskew = true;
+    if (arg == "--kitti")
+      value(o.kitti_dir);
+    else if (arg == "--bag")
+      value(o.bag_file);
+    else if (arg == "--topic")
+      value(o.topic);
+    else if (arg == "--sensor")
+      value(o.sensor);
+    else if (arg == "--trajectory")
+      value(o.trajectory);
+    else if (arg == "--tum")
+      value(o.tum);
+    else if (arg == "--map")
+      value(o.map);
+    else if (arg == "--deskew")
+      o.deskew = true;
     else if (arg == "--minimum-range")
     {
       value(number);

@@ -32,15 +32,15 @@ namespace fs = std::filesystem;
 namespace
 {
 constexpr double kPi = 3.14159265358979323846;
-constexpr double kStartStamp = 1000.0;        // s, header stamp of the first sweep
-constexpr double kStartAzimuth = kPi;         // the sweep is cut behind the sensor
-constexpr double kStraightSpeed = 5.0;        // m/s
-constexpr double kSceneMargin = 150.0;        // m of street beyond the end of the trajectory
-constexpr double kCorridorCarWeave = 0.3;     // m, lateral weave of a car in the corridor
-constexpr double kUrbanHandHeldStartX = 10.0; // m
-constexpr double kVelocityStep = 1e-3;        // s, central differences of the ground-truth twist
+constexpr double kStartStamp = 1000.0;         // s, header stamp of the first sweep
+constexpr double kStartAzimuth = kPi;          // the sweep is cut behind the sensor
+constexpr double kStraightSpeed = 5.0;         // m/s
+constexpr double kSceneMargin = 150.0;         // m of street beyond the end of the trajectory
+constexpr double kCorridorCarWeave = 0.3;      // m, lateral weave of a car in the corridor
+constexpr double kUrbanHandHeldStartX = 10.0;  // m
+constexpr double kVelocityStep = 1e-3;         // s, central differences of the ground-truth twist
 constexpr unsigned kSweepSeedStride = 100003U;
-constexpr int kProgressEvery = 10;            // sweeps
+constexpr int kProgressEvery = 10;  // sweeps
 constexpr const char* kCloudTopic = "velodyne_points";
 constexpr const char* kTruthTopic = "ground_truth";
 constexpr const char* kTfTopic = "/tf";
@@ -75,14 +75,16 @@ Options parseArguments(int argc, char** argv)
   for (int i = 1; i < argc; ++i)
   {
     const std::string arg = argv[i];
-    const auto value = [&]() -> std::string {
+    const auto value = [&]() -> std::string
+    {
       if (i + 1 >= argc)
       {
         throw std::invalid_argument("missing value after " + arg);
       }
       return argv[++i];
     };
-    const auto number = [&]() {
+    const auto number = [&]()
+    {
       const std::string text = value();
       std::size_t used = 0;
       const double parsed = std::stod(text, &used);
@@ -92,10 +94,14 @@ Options parseArguments(int argc, char** argv)
       }
       return parsed;
     };
-    if (arg == "--sensor") o.sensor = value();
-    else if (arg == "--scene") o.scene = value();
-    else if (arg == "--trajectory") o.trajectory = value();
-    else if (arg == "--duration") o.duration = number();
+    if (arg == "--sensor")
+      o.sensor = value();
+    else if (arg == "--scene")
+      o.scene = value();
+    else if (arg == "--trajectory")
+      o.trajectory = value();
+    else if (arg == "--duration")
+      o.duration = number();
     else if (arg == "--seed")
     {
       const double seed = number();
@@ -106,16 +112,21 @@ Options parseArguments(int argc, char** argv)
       o.seed = static_cast<unsigned>(seed);
       o.has_seed = true;
     }
-    else if (arg == "--noise") o.noise = number();
-    else if (arg == "--dropout") o.dropout = number();
-    else if (arg == "--bag") o.bag = value();
-    else if (arg == "--kitti") o.kitti = value();
+    else if (arg == "--noise")
+      o.noise = number();
+    else if (arg == "--dropout")
+      o.dropout = number();
+    else if (arg == "--bag")
+      o.bag = value();
+    else if (arg == "--kitti")
+      o.kitti = value();
     else if (arg == "-h" || arg == "--help")
     {
       std::cout << kUsage;
       std::exit(0);
     }
-    else throw std::invalid_argument("unknown argument " + arg);
+    else
+      throw std::invalid_argument("unknown argument " + arg);
   }
   if (o.sensor.empty() || o.scene.empty() || o.trajectory.empty() || o.bag.empty() || !o.has_seed)
   {
@@ -405,8 +416,7 @@ int run(const Options& o)
   const auto build_start = std::chrono::steady_clock::now();
   const TrajectorySetup trajectory = makeTrajectory(o);
   const aloam::sim::Scene scene = makeScene(o, trajectory);
-  const double build_seconds =
-      std::chrono::duration<double>(std::chrono::steady_clock::now() - build_start).count();
+  const double build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - build_start).count();
   std::cerr << "aloam_sim: " << o.sensor << ", scene " << o.scene << " (" << scene.size() << " primitives, built in "
             << build_seconds << " s), trajectory " << o.trajectory << ", " << sweeps << " sweeps\n";
 

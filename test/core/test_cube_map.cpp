@@ -19,8 +19,8 @@ namespace aloam
 {
 namespace
 {
-using test_support::makePoint;
 using test_support::cloudOf;
+using test_support::makePoint;
 constexpr double kCube = 50.0;
 constexpr double kTolerance = 1e-9;
 
@@ -316,9 +316,8 @@ TEST(CubeMapTest, VoxelMergingMatchesDownsamplingAfterEveryBatch)
   map.collectAll(all);
   Cloud map_corners;
   map_corners.points.assign(all.points.begin(), all.points.begin() + map.cornerCount());
-  const auto byPosition = [](const Point& a, const Point& b) {
-    return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z);
-  };
+  const auto byPosition = [](const Point& a, const Point& b)
+  { return std::tie(a.x, a.y, a.z) < std::tie(b.x, b.y, b.z); };
   // Downsample again at a tiny leaf: a no-op that sorts both clouds the same way.
   std::sort(map_corners.points.begin(), map_corners.points.end(), byPosition);
   std::sort(reference_corners.points.begin(), reference_corners.points.end(), byPosition);

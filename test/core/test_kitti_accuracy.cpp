@@ -32,8 +32,7 @@ fs::path kittiDir()
 }
 
 // Runs the pipeline over the whole sequence and returns the mapped lidar poses, one per frame.
-aloam::eval::Trajectory runSequence(const fs::path& dir, const aloam::PipelineConfig& config,
-                                    std::size_t& rejected)
+aloam::eval::Trajectory runSequence(const fs::path& dir, const aloam::PipelineConfig& config, std::size_t& rejected)
 {
   aloam::Pipeline pipeline(config);
   aloam::eval::Trajectory trajectory;
@@ -71,8 +70,8 @@ TEST(KittiAccuracy, Sequence00BeatsAloam)
   options.segment_lengths = { 10, 20, 30, 40, 50, 60, 70 };
   const auto result = aloam::eval::evaluate(gt, estimate, options);
   std::cout << "KITTI 00 frames " << kFirstEvaluatedFrame << "-" << gt.size() - 1 << ": drift "
-            << result.translation_drift_percent << " %, rotation " << result.rotation_deg_per_100m
-            << " deg/100 m, ATE " << result.ate_rmse_m << " m over " << result.segments << " segments\n";
+            << result.translation_drift_percent << " %, rotation " << result.rotation_deg_per_100m << " deg/100 m, ATE "
+            << result.ate_rmse_m << " m over " << result.segments << " segments\n";
   EXPECT_GT(result.segments, 100u);
   EXPECT_LE(result.translation_drift_percent, kAloamDriftPercent);
   EXPECT_LE(result.ate_rmse_m, kAloamAteMetres);

@@ -68,10 +68,10 @@ private:
 Eigen::Isometry3d makePose(const Eigen::Vector3d& t, double yaw, double pitch = 0.0, double roll = 0.0)
 {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  pose.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
-                   Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
-                   Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
-                      .toRotationMatrix();
+  pose.linear() =
+      (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()) *
+       Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
+          .toRotationMatrix();
   pose.translation() = t;
   return pose;
 }
@@ -491,8 +491,9 @@ TEST(TrajectoryIo, KittiRoundTrip)
 TEST(TrajectoryIo, ReadSkipsBlankLinesAndKeepsRowMajorOrder)
 {
   TempFile file("blank.txt");
-  file.write("\n1 0 0 0 0 1 0 0 0 0 1 0\n\n   \t\n"
-             "1 2 3 4 5 6 7 8 9 10 11 12\r\n");
+  file.write(
+      "\n1 0 0 0 0 1 0 0 0 0 1 0\n\n   \t\n"
+      "1 2 3 4 5 6 7 8 9 10 11 12\r\n");
   const Trajectory poses = readKittiPoses(file.path());
   ASSERT_EQ(poses.size(), 2u);
   EXPECT_TRUE(poses[0].matrix().isApprox(Eigen::Matrix4d::Identity()));
@@ -507,11 +508,11 @@ TEST(TrajectoryIo, MalformedPoseFileThrowsWithLocation)
 {
   const std::string good = "1 0 0 0 0 1 0 0 0 0 1 0\n";
   const std::vector<std::string> bad_lines = {
-    "1 0 0 0 0 1 0 0 0 0 1\n",        // 11 numbers
-    "1 0 0 0 0 1 0 0 0 0 1 0 7\n",    // 13 numbers
-    "1 0 0 0 0 1 0 0 0 0 1 abc\n",    // not a number
-    "1 0 0 0 0 1 0 0 0 0 1 0.5x\n",   // trailing garbage
-    "1 0 0 0 0 1 0 0 0 0 1 nan\n",    // not finite
+    "1 0 0 0 0 1 0 0 0 0 1\n",       // 11 numbers
+    "1 0 0 0 0 1 0 0 0 0 1 0 7\n",   // 13 numbers
+    "1 0 0 0 0 1 0 0 0 0 1 abc\n",   // not a number
+    "1 0 0 0 0 1 0 0 0 0 1 0.5x\n",  // trailing garbage
+    "1 0 0 0 0 1 0 0 0 0 1 nan\n",   // not finite
   };
   for (const std::string& bad : bad_lines)
   {
@@ -519,18 +520,20 @@ TEST(TrajectoryIo, MalformedPoseFileThrowsWithLocation)
     file.write(good + "\n" + bad + good);
     expectRuntimeErrorMentioning([&]() { readKittiPoses(file.path()); }, { file.path(), ":3" });
   }
-  expectRuntimeErrorMentioning([]() { readKittiPoses("/nonexistent/dir/poses.txt"); }, { "/nonexistent/dir/poses.txt" });
+  expectRuntimeErrorMentioning([]() { readKittiPoses("/nonexistent/dir/poses.txt"); },
+                               { "/nonexistent/dir/poses.txt" });
 }
 
 TEST(TrajectoryIo, CalibTrParsing)
 {
   TempFile file("calib.txt");
-  file.write("P0: 7.188560000000e+02 0 6.071928000000e+02 0 0 7.188560000000e+02 1.852157000000e+02 0 0 0 1 0\n"
-             "P1: 7.188560000000e+02 0 6.071928000000e+02 -3.861448000000e+02 0 7.188560000000e+02 "
-             "1.852157000000e+02 0 0 0 1 0\n"
-             "Tr: 4.276802385584e-04 -9.999672484946e-01 -8.084491683471e-03 -1.198459927713e-02 "
-             "-7.210626507497e-03 8.081198471645e-03 -9.999413164504e-01 -5.403984729748e-02 "
-             "9.999738645903e-01 4.859485810390e-04 -7.206933692422e-03 -2.921968648686e-01\n");
+  file.write(
+      "P0: 7.188560000000e+02 0 6.071928000000e+02 0 0 7.188560000000e+02 1.852157000000e+02 0 0 0 1 0\n"
+      "P1: 7.188560000000e+02 0 6.071928000000e+02 -3.861448000000e+02 0 7.188560000000e+02 "
+      "1.852157000000e+02 0 0 0 1 0\n"
+      "Tr: 4.276802385584e-04 -9.999672484946e-01 -8.084491683471e-03 -1.198459927713e-02 "
+      "-7.210626507497e-03 8.081198471645e-03 -9.999413164504e-01 -5.403984729748e-02 "
+      "9.999738645903e-01 4.859485810390e-04 -7.206933692422e-03 -2.921968648686e-01\n");
   const Eigen::Isometry3d tr = readKittiCalibTr(file.path());
   EXPECT_DOUBLE_EQ(tr.matrix()(0, 0), 4.276802385584e-04);
   EXPECT_DOUBLE_EQ(tr.matrix()(0, 1), -9.999672484946e-01);

@@ -94,7 +94,8 @@ TEST(LidarFactors, MatchResidualsMatchAutomaticDifferentiation)
     ASSERT_EQ(batch.num_residuals(), static_cast<int>(3 * s.lines.size() + s.planes.size()));
     const Evaluation b = evaluate(batch, s.q, s.t);
     int row = 0;
-    const auto expect_rows = [&](const ceres::CostFunction& reference) {
+    const auto expect_rows = [&](const ceres::CostFunction& reference)
+    {
       const Evaluation r = evaluate(reference, s.q, s.t);
       const int n = reference.num_residuals();
       EXPECT_LT((b.residual.segment(row, n) - r.residual).norm(), 1e-9);
@@ -186,7 +187,9 @@ TEST(LidarFactors, RobustResidualsGiveTheHuberCostAndGradient)
         }
         Eigen::Index worst = 0;
         const double error = (numeric - analytic).cwiseAbs().maxCoeff(&worst);
-        EXPECT_LT(error, 1e-6 * (1.0 + analytic.lpNorm<Eigen::Infinity>())) << "block " << block << " column " << c << " row " << worst << " numeric " << numeric[worst] << " analytic " << analytic[worst] << " residual " << b.residual[worst];
+        EXPECT_LT(error, 1e-6 * (1.0 + analytic.lpNorm<Eigen::Infinity>()))
+            << "block " << block << " column " << c << " row " << worst << " numeric " << numeric[worst] << " analytic "
+            << analytic[worst] << " residual " << b.residual[worst];
       }
     }
   }

@@ -22,7 +22,7 @@ constexpr double kSpeedAfter = 2.0;   // m/s after it
 constexpr int kSweepsBefore = 3;
 constexpr double kGapStart = kSweepsBefore * 0.1;  // s, end of the last sweep before the gap
 constexpr double kGapEnd = 2.3;                    // s, start of the first sweep after it
-constexpr double kAcrossGap = 0.8;  // m from the last sweep end before the gap to the first after it
+constexpr double kAcrossGap = 0.8;                 // m from the last sweep end before the gap to the first after it
 constexpr double kExact = 1e-9;
 // m: the sweep after the gap cannot be deskewed (its velocity is unknown), so its own motion (kSpeedAfter *
 // 0.1 s) biases the solved motion by about half of it (measured 0.11 m), plus solver slack.

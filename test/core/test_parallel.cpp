@@ -20,13 +20,15 @@ TEST(Parallel, EveryIndexOnceInContiguousChunks)
     {
       std::vector<int> hits(static_cast<std::size_t>(count), 0);
       std::vector<int> part_of(static_cast<std::size_t>(count), -1);
-      parallelChunks(count, parts, 1, [&](int begin, int end, int part) {
-        for (int i = begin; i < end; ++i)
-        {
-          ++hits[i];
-          part_of[i] = part;
-        }
-      });
+      parallelChunks(count, parts, 1,
+                     [&](int begin, int end, int part)
+                     {
+                       for (int i = begin; i < end; ++i)
+                       {
+                         ++hits[i];
+                         part_of[i] = part;
+                       }
+                     });
       for (int i = 0; i < count; ++i)
       {
         ASSERT_EQ(hits[i], 1) << "count " << count << " parts " << parts << " index " << i;
@@ -43,12 +45,14 @@ TEST(Parallel, TooLittleWorkStaysOnTheCallingThread)
 {
   const std::thread::id caller = std::this_thread::get_id();
   std::atomic<int> elsewhere{ 0 };
-  parallelChunks(100, 4, 64, [&](int, int, int) {
-    if (std::this_thread::get_id() != caller)
-    {
-      ++elsewhere;
-    }
-  });
+  parallelChunks(100, 4, 64,
+                 [&](int, int, int)
+                 {
+                   if (std::this_thread::get_id() != caller)
+                   {
+                     ++elsewhere;
+                   }
+                 });
   EXPECT_EQ(elsewhere.load(), 0);
 }
 
@@ -58,10 +62,13 @@ TEST(Parallel, TeamsAreSharedBetweenThreadsAndReused)
   detail::HelperTeam* first = detail::lendTeam(1);
   detail::returnTeam(first);
   detail::HelperTeam* again = nullptr;
-  std::thread([&] {
-    again = detail::lendTeam(1);
-    detail::returnTeam(again);
-  }).join();
+  std::thread(
+      [&]
+      {
+        again = detail::lendTeam(1);
+        detail::returnTeam(again);
+      })
+      .join();
   EXPECT_EQ(first, again);
   // While one is lent, another caller gets a team of its own.
   detail::HelperTeam* a = detail::lendTeam(2);
@@ -79,19 +86,23 @@ TEST(Parallel, ConcurrentCallersDoNotMix)
   std::vector<long long> sums(4, 0);
   for (int c = 0; c < 4; ++c)
   {
-    callers.emplace_back([&, c] {
-      for (int round = 0; round < 50; ++round)
-      {
-        std::vector<long long> partial(2, 0);
-        parallelChunks(kCount, 2, 1, [&](int begin, int end, int part) {
-          for (int i = begin; i < end; ++i)
+    callers.emplace_back(
+        [&, c]
+        {
+          for (int round = 0; round < 50; ++round)
           {
-            partial[part] += i;
+            std::vector<long long> partial(2, 0);
+            parallelChunks(kCount, 2, 1,
+                           [&](int begin, int end, int part)
+                           {
+                             for (int i = begin; i < end; ++i)
+                             {
+                               partial[part] += i;
+                             }
+                           });
+            sums[c] += partial[0] + partial[1];
           }
         });
-        sums[c] += partial[0] + partial[1];
-      }
-    });
   }
   for (std::thread& t : callers)
   {
@@ -107,7 +118,8 @@ TEST(Parallel, ThrowingOnTheCallingThreadWaitsForTheHelpers)
 {
   std::atomic<int> helper_done{ 0 };
   EXPECT_THROW(parallelChunks(2, 2, 1,
-                              [&](int, int, int part) {
+                              [&](int, int, int part)
+                              {
                                 if (part == 0)
                                 {
                                   throw std::runtime_error("chunk 0 failed");

@@ -65,7 +65,8 @@ double angleBetween(const Pose& a, const Pose& b)
 TEST(PoseSolver, RecoversAKnownPose)
 {
   std::mt19937 rng(1);
-  const Pose truth(Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitZ())), Eigen::Vector3d(3.0, -1.0, 0.2));
+  const Pose truth(Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitZ())),
+                   Eigen::Vector3d(3.0, -1.0, 0.2));
   {
     PoseProblem problem(perturbed(truth, 0.05, 0.3), 0.1);
     const auto [lines, planes] = problem.addMatches(exactMatches(truth, 150, 400, 0.0, rng));
@@ -180,7 +181,8 @@ TEST(PoseSolver, ConstraintStrengthIsCeresJacobians)
 TEST(PoseSolver, ThreadsDoNotChangeTheSolution)
 {
   std::mt19937 rng(4);
-  const Pose truth(Eigen::Quaterniond(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitY())), Eigen::Vector3d(1.0, 2.0, 3.0));
+  const Pose truth(Eigen::Quaterniond(Eigen::AngleAxisd(0.2, Eigen::Vector3d::UnitY())),
+                   Eigen::Vector3d(1.0, 2.0, 3.0));
   const MatchSlots slots = exactMatches(truth, 800, 3000, 0.05, rng);
   Pose solutions[2];
   for (const int threads : { 1, 2 })

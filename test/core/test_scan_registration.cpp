@@ -630,9 +630,17 @@ TEST(FastAtan2, WithinFortyNanoradiansOfAtan2)
   }
   EXPECT_LT(worst, 4e-8);
   EXPECT_GT(worst, 0.0);  // an approximation, not std::atan2 itself
-  for (const auto& [y, x] : std::vector<std::pair<double, double>>{
-           { 0.0, 1.0 }, { 1.0, 0.0 }, { 0.0, -1.0 }, { -1.0, 0.0 }, { 1.0, 1.0 }, { -1.0, -1.0 }, { -0.0, -1.0 },
-           { 0.0, 0.0 }, { -0.0, -0.0 }, { 1e-300, -1.0 }, { 5.0, std::numeric_limits<double>::infinity() } })
+  for (const auto& [y, x] : std::vector<std::pair<double, double>>{ { 0.0, 1.0 },
+                                                                    { 1.0, 0.0 },
+                                                                    { 0.0, -1.0 },
+                                                                    { -1.0, 0.0 },
+                                                                    { 1.0, 1.0 },
+                                                                    { -1.0, -1.0 },
+                                                                    { -0.0, -1.0 },
+                                                                    { 0.0, 0.0 },
+                                                                    { -0.0, -0.0 },
+                                                                    { 1e-300, -1.0 },
+                                                                    { 5.0, std::numeric_limits<double>::infinity() } })
   {
     EXPECT_NEAR(fastAtan2(y, x), std::atan2(y, x), 4e-8) << y << ", " << x;
     EXPECT_EQ(std::signbit(fastAtan2(y, x)), std::signbit(std::atan2(y, x))) << y << ", " << x;

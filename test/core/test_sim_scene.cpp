@@ -43,10 +43,10 @@ Eigen::Isometry3d wobblingPose(double t)
 {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
   pose.translation() = Eigen::Vector3d(40.0 + 10.0 * t, 0.5 - 3.0 * t, kSensorHeight + 4.0 * t);
-  pose.linear() = (Eigen::AngleAxisd(0.2 + 5.0 * t, Eigen::Vector3d::UnitZ()) *
-                   Eigen::AngleAxisd(-2.0 * t, Eigen::Vector3d::UnitY()) *
-                   Eigen::AngleAxisd(1.5 * t, Eigen::Vector3d::UnitX()))
-                      .toRotationMatrix();
+  pose.linear() =
+      (Eigen::AngleAxisd(0.2 + 5.0 * t, Eigen::Vector3d::UnitZ()) *
+       Eigen::AngleAxisd(-2.0 * t, Eigen::Vector3d::UnitY()) * Eigen::AngleAxisd(1.5 * t, Eigen::Vector3d::UnitX()))
+          .toRotationMatrix();
   return pose;
 }
 
@@ -243,7 +243,8 @@ TEST(SimScene, UrbanStreetContentsAndClearCenterline)
   const UrbanStreetOptions defaults;
   const double street_span = length + 2.0 * defaults.end_margin_m;
   // Poles on both sides at most pole_spacing_max_m apart.
-  EXPECT_GE(scene.countClass(SurfaceClass::Pole), static_cast<int>(2.0 * street_span / defaults.pole_spacing_max_m) - 2);
+  EXPECT_GE(scene.countClass(SurfaceClass::Pole),
+            static_cast<int>(2.0 * street_span / defaults.pole_spacing_max_m) - 2);
   EXPECT_GT(scene.countClass(SurfaceClass::Building), 10);
   EXPECT_GT(scene.countClass(SurfaceClass::Vehicle), 10);
   EXPECT_GT(scene.countClass(SurfaceClass::TreeTrunk), 0);
@@ -260,13 +261,14 @@ TEST(SimScene, UrbanStreetContentsAndClearCenterline)
       continue;
     }
     const Aabb b = shapeBounds(p.shape);
-    const bool overlaps = (b.min.array() <= corridor.max.array()).all() && (b.max.array() >= corridor.min.array()).all();
+    const bool overlaps =
+        (b.min.array() <= corridor.max.array()).all() && (b.max.array() >= corridor.min.array()).all();
     EXPECT_FALSE(overlaps);
   }
   // Looking sideways from the street mostly sees facades, cars, poles or trees just beyond the
   // curb; a few rays escape through alleys between buildings.
-  const double max_near = 0.5 * defaults.street_width_max_m + defaults.sidewalk_width_m +
-                          defaults.building_setback_max_m;
+  const double max_near =
+      0.5 * defaults.street_width_max_m + defaults.sidewalk_width_m + defaults.building_setback_max_m;
   int near_hits = 0;
   int escapes = 0;
   int rays = 0;
@@ -274,8 +276,7 @@ TEST(SimScene, UrbanStreetContentsAndClearCenterline)
   {
     for (const double side : { -1.0, 1.0 })
     {
-      const auto hit =
-          scene.intersect(Eigen::Vector3d(x, 0.0, kSensorHeight), Eigen::Vector3d(0.0, side, 0.0), 100.0);
+      const auto hit = scene.intersect(Eigen::Vector3d(x, 0.0, kSensorHeight), Eigen::Vector3d(0.0, side, 0.0), 100.0);
       near_hits += hit && hit->distance <= max_near ? 1 : 0;
       escapes += hit ? 0 : 1;
     }
@@ -482,7 +483,9 @@ TEST(SimRaycaster, PerformanceSmoke)
     for (int i = 0; i < sweeps; ++i)
     {
       const double x = 10.0 * i;
-      points += scan(scene, model, [&](double t) { return pose_at(t + x / 10.0); }, ScanOptions()).size();
+      points += scan(
+                    scene, model, [&](double t) { return pose_at(t + x / 10.0); }, ScanOptions())
+                    .size();
     }
     const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     std::printf("[ perf     ] %s on urbanStreet: %.1f sweeps/s (%.2f ms/sweep, %.0f points/sweep)\n", name.c_str(),

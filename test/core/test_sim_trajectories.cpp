@@ -14,8 +14,8 @@
 namespace
 {
 constexpr double kPi = 3.14159265358979323846;
-constexpr double kStep = 0.005;     // s, finite-difference step
-constexpr double kHorizon = 30.0;   // s of trajectory checked
+constexpr double kStep = 0.005;    // s, finite-difference step
+constexpr double kHorizon = 30.0;  // s of trajectory checked
 constexpr double kCarHalfWidth = 1.0;
 constexpr unsigned kSeed = 11;
 
@@ -245,10 +245,12 @@ TEST(Scenes, SameSeedGivesIdenticalSweeps)
   options.dropout_probability = 0.05;
   options.seed = 1234;
   const double start = 2.5;  // on the ramp's first vertical curve
-  const auto sweep = [&](unsigned scene_seed) {
+  const auto sweep = [&](unsigned scene_seed)
+  {
     const aloam::sim::Scene scene = aloam::sim::urbanStreetWithHill(scene_seed, 200.0, hill);
     const aloam::sim::PoseFunction pose_at = aloam::sim::carDrive(10.0, hill);
-    return aloam::sim::scan(scene, *sensor, [&](double t) { return pose_at(start + t); }, options);
+    return aloam::sim::scan(
+        scene, *sensor, [&](double t) { return pose_at(start + t); }, options);
   };
   const aloam::Cloud a = sweep(kSeed);
   const aloam::Cloud b = sweep(kSeed);

@@ -11,8 +11,8 @@ namespace aloam
 {
 namespace
 {
-constexpr std::int64_t kMs = 1'000'000;         // nanoseconds
-constexpr std::int64_t kSweep = 100 * kMs;      // 10 Hz
+constexpr std::int64_t kMs = 1'000'000;                             // nanoseconds
+constexpr std::int64_t kSweep = 100 * kMs;                          // 10 Hz
 constexpr std::int64_t kStart = 1'700'000'000LL * 1'000'000'000LL;  // a wall-clock stamp (2023), in ns
 
 StampCheckConfig tenHertz()
@@ -35,8 +35,7 @@ TEST(StampCheck, FirstThenInSequence)
     EXPECT_NEAR(check.lastStep(), 0.1, 1e-12);
   }
   EXPECT_EQ(check.counts().taken, 21u);
-  EXPECT_EQ(check.counts().duplicates + check.counts().out_of_order + check.counts().gaps +
-                check.counts().jumps_back,
+  EXPECT_EQ(check.counts().duplicates + check.counts().out_of_order + check.counts().gaps + check.counts().jumps_back,
             0u);
 }
 

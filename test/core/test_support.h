@@ -124,8 +124,7 @@ inline Cloud driveSweep(const SensorModel& sensor, const Trajectory& drive, int 
 }
 
 /// A point with the given coordinates and fields.
-inline Point makePoint(double x, double y, double z, std::uint16_t ring = 0, float intensity = 0.0f,
-                       float time = 0.0f)
+inline Point makePoint(double x, double y, double z, std::uint16_t ring = 0, float intensity = 0.0f, float time = 0.0f)
 {
   Point p;
   p.x = static_cast<float>(x);

@@ -17,8 +17,8 @@ namespace aloam
 {
 namespace
 {
-using test_support::makePoint;
 using test_support::cloudOf;
+using test_support::makePoint;
 constexpr double kLeaf = 0.2;
 constexpr float kCoordinateTolerance = 1e-5f;
 

@@ -25,10 +25,7 @@ class ByteSource
 public:
   ByteSource(const std::uint8_t* data, std::size_t size) : data_(data), size_(size) {}
 
-  std::uint8_t byte()
-  {
-    return pos_ < size_ ? data_[pos_++] : 0;
-  }
+  std::uint8_t byte() { return pos_ < size_ ? data_[pos_++] : 0; }
   std::uint32_t u16() { return static_cast<std::uint32_t>(byte()) | (static_cast<std::uint32_t>(byte()) << 8); }
   const std::uint8_t* rest() const { return data_ + pos_; }
   std::size_t restSize() const { return pos_ < size_ ? size_ - pos_ : 0; }

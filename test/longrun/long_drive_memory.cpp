@@ -97,8 +97,9 @@ int main(int argc, char** argv)
   Options o;
   if (!parse(argc, argv, o))
   {
-    std::fprintf(stderr, "usage: aloam_long_drive [--sweeps N>=10] [--seed S] [--report-every K] "
-                         "[--eviction-radius M] [--max-late-growth-mb MB]\n");
+    std::fprintf(stderr,
+                 "usage: aloam_long_drive [--sweeps N>=10] [--seed S] [--report-every K] "
+                 "[--eviction-radius M] [--max-late-growth-mb MB]\n");
     return 2;
   }
   const aloam::SensorModel sensor = *aloam::SensorModel::fromPreset("VLP16");
@@ -118,13 +119,14 @@ int main(int argc, char** argv)
   }
   aloam::Pipeline pipeline(config);
 
-  std::printf("long drive: %ld VLP-16 sweeps at %.0f Hz, %.0f m/s (%.1f km, %.1f min of data), seed %u, "
-              "eviction radius %.0f m\n",
-              o.sweeps, 1.0 / drive_options.scan_period, drive_options.speed,
-              o.sweeps * drive_options.scan_period * drive_options.speed / 1000.0,
-              o.sweeps * drive_options.scan_period / 60.0, o.seed, o.eviction_radius);
-  std::printf("%8s %8s %9s %7s %11s %9s %9s %9s\n", "sweep", "wall s", "RSS MB", "cubes", "map points",
-              "evicted", "tiles", "error m");
+  std::printf(
+      "long drive: %ld VLP-16 sweeps at %.0f Hz, %.0f m/s (%.1f km, %.1f min of data), seed %u, "
+      "eviction radius %.0f m\n",
+      o.sweeps, 1.0 / drive_options.scan_period, drive_options.speed,
+      o.sweeps * drive_options.scan_period * drive_options.speed / 1000.0, o.sweeps * drive_options.scan_period / 60.0,
+      o.seed, o.eviction_radius);
+  std::printf("%8s %8s %9s %7s %11s %9s %9s %9s\n", "sweep", "wall s", "RSS MB", "cubes", "map points", "evicted",
+              "tiles", "error m");
   std::fflush(stdout);
 
   // The next sweep is simulated on another thread while the pipeline processes this one.
@@ -177,8 +179,8 @@ int main(int argc, char** argv)
       s.error_m = error;
       samples.push_back(s);
       const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-      std::printf("%8ld %8.0f %9.1f %7zu %11zu %9zu %9zu %9.2f\n", s.sweep, wall, s.rss_mb, s.cubes,
-                  s.map_points, s.evicted, drive.tilesGenerated(), s.error_m);
+      std::printf("%8ld %8.0f %9.1f %7zu %11zu %9zu %9zu %9.2f\n", s.sweep, wall, s.rss_mb, s.cubes, s.map_points,
+                  s.evicted, drive.tilesGenerated(), s.error_m);
       std::fflush(stdout);
     }
   }
@@ -202,17 +204,19 @@ int main(int argc, char** argv)
   }
   const double late_growth = last.rss_mb - mid.rss_mb;
   const double distance = o.sweeps * drive_options.scan_period * drive_options.speed;
-  std::printf("RSS %.1f MB at sweep %ld, %.1f MB at sweep %ld: %+.1f MB over the second half (<= %.1f)\n",
-              mid.rss_mb, mid.sweep, last.rss_mb, last.sweep, late_growth, o.max_late_growth_mb);
+  std::printf("RSS %.1f MB at sweep %ld, %.1f MB at sweep %ld: %+.1f MB over the second half (<= %.1f)\n", mid.rss_mb,
+              mid.sweep, last.rss_mb, last.sweep, late_growth, o.max_late_growth_mb);
   std::printf("map: at most %zu points / %zu cubes in the second half (%zu in the first); %zu cubes evicted\n",
               max_points_late, max_cubes_late, max_points_early, last.evicted);
   std::printf("ms per sweep: registration %.1f, odometry %.1f, mapping %.1f, waiting for the simulator %.1f\n",
               registration_ms / o.sweeps, odometry_ms / o.sweeps, mapping_ms / o.sweeps, simulation_ms / o.sweeps);
-  std::printf("poses: %ld rejected sweeps, %ld non-finite; position error at the end %.1f m (worst %.1f m), "
-              "distance from the start off by %.1f m, over %.0f m\n",
-              rejected, non_finite, last.error_m, worst_error, progress_error, distance);
+  std::printf(
+      "poses: %ld rejected sweeps, %ld non-finite; position error at the end %.1f m (worst %.1f m), "
+      "distance from the start off by %.1f m, over %.0f m\n",
+      rejected, non_finite, last.error_m, worst_error, progress_error, distance);
   bool ok = true;
-  auto check = [&ok](bool condition, const char* what) {
+  auto check = [&ok](bool condition, const char* what)
+  {
     if (!condition)
     {
       std::printf("FAILED: %s\n", what);

@@ -29,13 +29,15 @@ TEST(BackgroundWorker, RunsOnRequestAndCoalesces)
 {
   std::atomic<int> runs{ 0 };
   std::atomic<bool> release{ false };
-  BackgroundWorker worker([&] {
-    while (!release.load())
-    {
-      std::this_thread::sleep_for(milliseconds(1));
-    }
-    ++runs;
-  });
+  BackgroundWorker worker(
+      [&]
+      {
+        while (!release.load())
+        {
+          std::this_thread::sleep_for(milliseconds(1));
+        }
+        ++runs;
+      });
   worker.request();
   std::this_thread::sleep_for(milliseconds(20));  // the first run is under way, held
   worker.request();
@@ -50,10 +52,12 @@ TEST(BackgroundWorker, DeadlineRunsNotBeforeIt)
 {
   std::atomic<int> runs{ 0 };
   std::atomic<long long> ran_at_ns{ 0 };
-  BackgroundWorker worker([&] {
-    ran_at_ns = Clock::now().time_since_epoch().count();
-    ++runs;
-  });
+  BackgroundWorker worker(
+      [&]
+      {
+        ran_at_ns = Clock::now().time_since_epoch().count();
+        ++runs;
+      });
   const auto deadline = Clock::now() + milliseconds(80);
   worker.requestBy(deadline);
   std::this_thread::sleep_for(milliseconds(30));
@@ -103,10 +107,12 @@ TEST(BackgroundWorker, JobRunsAtNormalPriority)
 {
   std::atomic<int> runs{ 0 };
   std::atomic<int> policy{ -1 };
-  BackgroundWorker worker([&] {
-    policy = sched_getscheduler(0);
-    ++runs;
-  });
+  BackgroundWorker worker(
+      [&]
+      {
+        policy = sched_getscheduler(0);
+        ++runs;
+      });
   worker.request();
   ASSERT_TRUE(waitFor(runs, 1));
   EXPECT_EQ(policy.load(), SCHED_OTHER);

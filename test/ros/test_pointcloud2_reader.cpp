@@ -15,8 +15,8 @@
 namespace
 {
 using aloam::ros_io::ReaderOptions;
-using aloam::ros_io::ReadReport;
 using aloam::ros_io::readPointCloud2;
+using aloam::ros_io::ReadReport;
 using sensor_msgs::PointField;
 
 constexpr std::uint8_t kFillByte = 0x42;  // unused bytes decode to plausible numbers (0x42424242 = 48.56f)
@@ -294,16 +294,15 @@ TEST_P(IntensityTypes, AnyNumericTypeIsConverted)
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    PointCloud2Reader, IntensityTypes,
-    ::testing::Values(IntensityCase{ PointField::UINT8, { 0, 17, 255 } },
-                      IntensityCase{ PointField::UINT16, { 0, 300, 65535 } },
-                      IntensityCase{ PointField::FLOAT32, { 0.5, 100.25, 3.5e3 } },
-                      IntensityCase{ PointField::INT8, { -128, -1, 127 } },
-                      IntensityCase{ PointField::INT16, { -32768, 5, 32767 } },
-                      IntensityCase{ PointField::INT32, { -70000, 0, 123456 } },
-                      IntensityCase{ PointField::UINT32, { 0, 4000000, 16777216 } },
-                      IntensityCase{ PointField::FLOAT64, { 0.125, 1e4, -2.5 } }));
+INSTANTIATE_TEST_SUITE_P(PointCloud2Reader, IntensityTypes,
+                         ::testing::Values(IntensityCase{ PointField::UINT8, { 0, 17, 255 } },
+                                           IntensityCase{ PointField::UINT16, { 0, 300, 65535 } },
+                                           IntensityCase{ PointField::FLOAT32, { 0.5, 100.25, 3.5e3 } },
+                                           IntensityCase{ PointField::INT8, { -128, -1, 127 } },
+                                           IntensityCase{ PointField::INT16, { -32768, 5, 32767 } },
+                                           IntensityCase{ PointField::INT32, { -70000, 0, 123456 } },
+                                           IntensityCase{ PointField::UINT32, { 0, 4000000, 16777216 } },
+                                           IntensityCase{ PointField::FLOAT64, { 0.125, 1e4, -2.5 } }));
 
 TEST(PointCloud2Reader, MissingIntensityWarnsAndZeroes)
 {
@@ -568,9 +567,9 @@ class MissingCoordinate : public ::testing::TestWithParam<std::string>
 TEST_P(MissingCoordinate, IsAnErrorNamingTheField)
 {
   CloudSpec spec = xyziSpec(3);
-  spec.fields.erase(std::remove_if(spec.fields.begin(), spec.fields.end(),
-                                   [&](const FieldDef& f) { return f.name == GetParam(); }),
-                    spec.fields.end());
+  spec.fields.erase(
+      std::remove_if(spec.fields.begin(), spec.fields.end(), [&](const FieldDef& f) { return f.name == GetParam(); }),
+      spec.fields.end());
   aloam::Cloud out;
   out.push_back(aloam::Point());  // stale content must be cleared
   const ReadReport report = readPointCloud2(makeCloud(spec, simpleXyziPoints(3)), ReaderOptions(), out);
@@ -899,12 +898,9 @@ TEST(PointCloud2Reader, BigEndianDecodesLikeLittleEndian)
          PointField::UINT32, PointField::FLOAT32, PointField::FLOAT64 })
   {
     CloudSpec spec;
-    spec.fields = { { "x", PointField::FLOAT32, 0 },
-                    { "y", PointField::FLOAT64, 4 },
-                    { "z", PointField::FLOAT32, 12 },
-                    { "intensity", intensity_type, 16 },
-                    { "ring", PointField::UINT16, 24 },
-                    { "t", PointField::UINT32, 26 } };
+    spec.fields = { { "x", PointField::FLOAT32, 0 },    { "y", PointField::FLOAT64, 4 },
+                    { "z", PointField::FLOAT32, 12 },   { "intensity", intensity_type, 16 },
+                    { "ring", PointField::UINT16, 24 }, { "t", PointField::UINT32, 26 } };
     spec.point_step = 30;
     spec.width = 6;
     spec.height = 2;
@@ -1025,8 +1021,8 @@ TEST(PointCloud2Reader, RandomMalformedMessagesNeverCrash)
     msg.width = static_cast<std::uint32_t>(uniform(0, 20));
     msg.height = static_cast<std::uint32_t>(uniform(0, 4));
     msg.point_step = static_cast<std::uint32_t>(uniform(0, 40));
-    msg.row_step = uniform(0, 3) == 0 ? static_cast<std::uint32_t>(uniform(0, 1000)) :
-                                        msg.width * msg.point_step + static_cast<std::uint32_t>(uniform(0, 5));
+    msg.row_step = uniform(0, 3) == 0 ? static_cast<std::uint32_t>(uniform(0, 1000))
+                                      : msg.width * msg.point_step + static_cast<std::uint32_t>(uniform(0, 5));
     msg.is_bigendian = uniform(0, 1) == 1;
     for (const std::string& name : names)
     {

@@ -16,11 +16,11 @@
 
 namespace
 {
-constexpr double kSpeed = 10.0;           // m/s along the street
-constexpr double kSensorHeight = 1.8;     // m
-constexpr double kSwayAmplitude = 0.8;    // m, lateral weave
-constexpr double kSwayRate = 0.4;         // rad/s
-constexpr double kStartStamp = 1000.0;    // s, stamp of the first sweep
+constexpr double kSpeed = 10.0;         // m/s along the street
+constexpr double kSensorHeight = 1.8;   // m
+constexpr double kSwayAmplitude = 0.8;  // m, lateral weave
+constexpr double kSwayRate = 0.4;       // rad/s
+constexpr double kStartStamp = 1000.0;  // s, stamp of the first sweep
 constexpr unsigned kSceneSeed = 7;
 
 // World <- sensor at time t: forward at constant speed, weaving gently, heading along the motion.
@@ -63,8 +63,8 @@ int main(int argc, char** argv)
     aloam::sim::ScanOptions options;
     options.range_noise_sigma = 0.01;
     options.seed = static_cast<unsigned>(k);
-    const aloam::Cloud cloud =
-        aloam::sim::scan(scene, *sensor, [&](double t) { return poseAt(start + t); }, options);
+    const aloam::Cloud cloud = aloam::sim::scan(
+        scene, *sensor, [&](double t) { return poseAt(start + t); }, options);
     sensor_msgs::PointCloud2 msg;
     pcl::toROSMsg(cloud, msg);
     msg.header.frame_id = "velodyne";

@@ -42,8 +42,8 @@ private:
   };
   struct Node
   {
-    int begin, end;     // entries of the subtree
-    int left = -1;      // children (node indices); -1 for a leaf
+    int begin, end;  // entries of the subtree
+    int left = -1;   // children (node indices); -1 for a leaf
     int right = -1;
     int axis = 0;
     float split = 0.0f;

@@ -16,18 +16,18 @@ namespace aloam
 {
 struct LaserMappingConfig
 {
-  double cube_size = 50.0;               ///< edge of a map cube (m)
-  int submap_half_xy = 2;                ///< submap: cubes on each side of the robot's cube, x and y
-  int submap_half_z = 1;                 ///< ... and z
-  double corner_leaf_size = 0.4;         ///< voxel leaf for edge points, scan and map (m)
-  double surf_leaf_size = 0.8;           ///< voxel leaf for plane points, scan and map (m)
-  int max_iterations = 4;                ///< Ceres iterations per solve
-  int outer_iterations = 2;              ///< correspondence searches per frame, each followed by a solve
-  int line_neighbours = 5;              ///< map points fitted per edge point (A-LOAM: 5)
+  double cube_size = 50.0;        ///< edge of a map cube (m)
+  int submap_half_xy = 2;         ///< submap: cubes on each side of the robot's cube, x and y
+  int submap_half_z = 1;          ///< ... and z
+  double corner_leaf_size = 0.4;  ///< voxel leaf for edge points, scan and map (m)
+  double surf_leaf_size = 0.8;    ///< voxel leaf for plane points, scan and map (m)
+  int max_iterations = 4;         ///< Ceres iterations per solve
+  int outer_iterations = 2;       ///< correspondence searches per frame, each followed by a solve
+  int line_neighbours = 5;        ///< map points fitted per edge point (A-LOAM: 5)
   /// Farthest fitted neighbour (m^2), lines and planes. A-LOAM uses 1 m^2; with 0.8 m plane voxels five
   /// neighbours often lie just beyond 1 m, and 2 m^2 measured better on KITTI 00 (drift 1.28 % vs 1.30 %).
   double line_max_sq_distance = 2.0;
-  double line_eigen_ratio = 3.0;         ///< a line needs its largest eigenvalue this times the next
+  double line_eigen_ratio = 3.0;  ///< a line needs its largest eigenvalue this times the next
   /// Map points fitted per plane point. On sparse maps (16 beams) five neighbours are often one scan line
   /// plus a stray point, which fit a plane exactly with a false normal near wall bases and curbs; more
   /// neighbours within a wider radius and a tighter plane_max_distance (10, 4 m^2, 0.1 m) removed the
@@ -35,18 +35,18 @@ struct LaserMappingConfig
   /// (ATE 0.17 -> 0.21 m), so the defaults stay A-LOAM's count.
   int plane_neighbours = 5;
   double plane_max_sq_distance = 2.0;
-  double plane_max_distance = 0.2;       ///< every neighbour within this of the fitted plane (m)
+  double plane_max_distance = 0.2;  ///< every neighbour within this of the fitted plane (m)
   /// The neighbours must spread in two directions: second eigenvalue at least this times the largest (0.3
   /// measured best of 0.05 / 0.15 / 0.3 on KITTI and on synthetic VLP-16 and HDL-64 drives).
   double plane_min_spread_ratio = 0.3;
-  double huber_delta = 0.1;              ///< robust loss scale (m)
-  int min_map_corners = 10;              ///< submap needs this many edge points to register against
-  int min_map_surfs = 50;                ///< ... and this many plane points
-  int min_correspondences = 20;          ///< fewer matches: keep the prediction, report degraded
-  double min_constraint = 25.0;          ///< weaker constraint (see LaserOdometryConfig): keep the prediction
-  double constraint_lever_arm = 10.0;    ///< metres; see PoseProblem::constraintStrength
-  double eviction_radius = 1000.0;       ///< cubes farther than this from the robot are dropped (m); <= 0 keeps all
-  int threads = 2;                       ///< threads sharing the correspondence search (results do not depend on it)
+  double huber_delta = 0.1;            ///< robust loss scale (m)
+  int min_map_corners = 10;            ///< submap needs this many edge points to register against
+  int min_map_surfs = 50;              ///< ... and this many plane points
+  int min_correspondences = 20;        ///< fewer matches: keep the prediction, report degraded
+  double min_constraint = 25.0;        ///< weaker constraint (see LaserOdometryConfig): keep the prediction
+  double constraint_lever_arm = 10.0;  ///< metres; see PoseProblem::constraintStrength
+  double eviction_radius = 1000.0;     ///< cubes farther than this from the robot are dropped (m); <= 0 keeps all
+  int threads = 2;                     ///< threads sharing the correspondence search (results do not depend on it)
 };
 
 enum class MappingStatus
@@ -123,8 +123,8 @@ private:
   };
 
   int solve(Pose& pose, MappingResult& result);
-  static bool fitNeighbours(const KdTree& tree, const Cloud& cloud, const Point& query, int k,
-                            double max_sq_distance, Neighbourhood& fit);
+  static bool fitNeighbours(const KdTree& tree, const Cloud& cloud, const Point& query, int k, double max_sq_distance,
+                            Neighbourhood& fit);
   bool matchEdge(const Point& p, const Pose& pose, LineMatch& match) const;
   bool matchPlane(const Point& p, const Pose& pose, PlaneMatch& match) const;
   void insert(const Pose& pose);

@@ -14,37 +14,37 @@ namespace aloam
 {
 struct LaserOdometryConfig
 {
-  int max_iterations = 4;               ///< Ceres iterations per solve
-  int outer_iterations = 2;             ///< correspondence searches per sweep, each followed by a solve
-  double distance_sq_threshold = 25.0;  ///< nearest neighbour farther than this (m^2) is no match
-  double nearby_scan = 2.5;             ///< rings searched on each side for the second/third point
-  bool deskew = false;                  ///< correct motion within the sweep (needs per-point time)
-  bool constant_velocity = true;        ///< start each solve from the previous sweep's motion
-  double huber_delta = 0.1;             ///< robust loss scale (m)
-  int min_correspondences = 10;         ///< fewer matches: keep the motion prior, report degraded
-  int min_last_corners = 10;            ///< previous sweep needs this many edge points to match against
-  int min_last_surfs = 100;             ///< ... and this many plane points
+  int max_iterations = 4;                   ///< Ceres iterations per solve
+  int outer_iterations = 2;                 ///< correspondence searches per sweep, each followed by a solve
+  double distance_sq_threshold = 25.0;      ///< nearest neighbour farther than this (m^2) is no match
+  double nearby_scan = 2.5;                 ///< rings searched on each side for the second/third point
+  bool deskew = false;                      ///< correct motion within the sweep (needs per-point time)
+  bool constant_velocity = true;            ///< start each solve from the previous sweep's motion
+  double huber_delta = 0.1;                 ///< robust loss scale (m)
+  int min_correspondences = 10;             ///< fewer matches: keep the motion prior, report degraded
+  int min_last_corners = 10;                ///< previous sweep needs this many edge points to match against
+  int min_last_surfs = 100;                 ///< ... and this many plane points
   double max_translation_per_sweep = 10.0;  ///< a larger solved motion is rejected as divergent (m)
   /// Degeneracy: weaker constraint than this (PoseProblem::constraintStrength, rotations as the motion of
   /// a point constraint_lever_arm metres away) keeps the motion prior.
   double min_constraint = 10.0;
   double constraint_lever_arm = 10.0;
-  int threads = 2;                      ///< threads sharing the correspondence search (results do not depend on it)
+  int threads = 2;  ///< threads sharing the correspondence search (results do not depend on it)
 };
 
 enum class OdometryStatus
 {
   kInitialized,  ///< first sweep: pose is identity, nothing to match yet
   kOk,
-  kDegraded,     ///< too few or degenerate correspondences, or a divergent solve: the motion prior was used
+  kDegraded,  ///< too few or degenerate correspondences, or a divergent solve: the motion prior was used
 };
 
 /// One sweep's odometry: the pose and the clouds mapping needs, in the sensor frame at the sweep end.
 struct OdometryFrame
 {
   double stamp = 0.0;
-  Pose pose;             ///< odometry world <- sensor at the sweep end
-  Pose motion;           ///< previous sweep end <- this sweep end
+  Pose pose;    ///< odometry world <- sensor at the sweep end
+  Pose motion;  ///< previous sweep end <- this sweep end
   OdometryStatus status = OdometryStatus::kInitialized;
   int corner_matches = 0;
   int plane_matches = 0;

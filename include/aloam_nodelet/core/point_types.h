@@ -42,5 +42,6 @@ inline void setUnorganized(Cloud& cloud)
 }  // namespace aloam
 
 POINT_CLOUD_REGISTER_POINT_STRUCT(aloam::PointXYZIRT,
-                                  (float, x, x)(float, y, y)(float, z, z)(float, intensity, intensity)(
-                                      float, time, time)(std::uint16_t, ring, ring))
+                                  (float, x, x)(float, y, y)(float, z, z)(float, intensity,
+                                                                          intensity)(float, time, time)(std::uint16_t,
+                                                                                                        ring, ring))

@@ -34,10 +34,7 @@ struct Pose
 
   /// The pose a fraction `s` of the way from identity to this one (slerp / linear), LOAM's
   /// constant-velocity model within a sweep.
-  Pose interpolated(double s) const
-  {
-    return Pose(Eigen::Quaterniond::Identity().slerp(s, q), s * t);
-  }
+  Pose interpolated(double s) const { return Pose(Eigen::Quaterniond::Identity().slerp(s, q), s * t); }
 };
 
 /// Applies `pose` to the coordinates of `p`, keeping its other fields.

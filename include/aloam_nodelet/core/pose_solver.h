@@ -58,12 +58,12 @@ private:
 /// How the matching stages alternate correspondence search and solving.
 struct MatchSolveOptions
 {
-  int outer_iterations = 2;    ///< searches, each followed by a solve
-  int max_iterations = 4;      ///< solver iterations per solve
-  int threads = 1;             ///< threads sharing the correspondence search
-  int min_matches = 10;        ///< fewer matches: stop without solving
+  int outer_iterations = 2;  ///< searches, each followed by a solve
+  int max_iterations = 4;    ///< solver iterations per solve
+  int threads = 1;           ///< threads sharing the correspondence search
+  int min_matches = 10;      ///< fewer matches: stop without solving
   double huber_delta = 0.1;
-  double lever_arm = 10.0;     ///< for the constraint strength of the last solve
+  double lever_arm = 10.0;  ///< for the constraint strength of the last solve
 };
 
 /// The options of a stage whose configuration names them alike (LaserOdometryConfig, LaserMappingConfig).
@@ -103,19 +103,21 @@ MatchSolveResult matchAndSolve(Pose& pose, std::size_t line_points, std::size_t 
   MatchSolveResult result;
   for (int outer = 0; outer < options.outer_iterations; ++outer)
   {
-    parallelChunks(n_all, options.threads, kMinPointsPerThread, [&](int begin, int end, int) {
-      for (int i = begin; i < end; ++i)
-      {
-        if (i < n_lines)
-        {
-          slots.line_found[i] = match_line(i, pose, slots.lines[i]);
-        }
-        else
-        {
-          slots.plane_found[i - n_lines] = match_plane(i - n_lines, pose, slots.planes[i - n_lines]);
-        }
-      }
-    });
+    parallelChunks(n_all, options.threads, kMinPointsPerThread,
+                   [&](int begin, int end, int)
+                   {
+                     for (int i = begin; i < end; ++i)
+                     {
+                       if (i < n_lines)
+                       {
+                         slots.line_found[i] = match_line(i, pose, slots.lines[i]);
+                       }
+                       else
+                       {
+                         slots.plane_found[i - n_lines] = match_plane(i - n_lines, pose, slots.planes[i - n_lines]);
+                       }
+                     }
+                   });
     PoseProblem problem(pose, options.huber_delta, options.threads);
     const auto [lines, planes] = problem.addMatches(slots);
     result = MatchSolveResult{ lines, planes, 0.0 };

@@ -12,11 +12,11 @@ namespace aloam
 struct ScanRegistrationConfig
 {
   SensorModel sensor = *SensorModel::fromPreset("VLP16");
-  double scan_period = 0.1;          ///< seconds per sweep, for time from azimuth
-  double minimum_range = 0.3;        ///< metres; closer returns are dropped (vehicle body)
-  double maximum_range = 200.0;      ///< metres; farther returns are dropped
-  bool use_ring_field = true;        ///< trust the input's ring when it has one
-  bool use_time_field = true;        ///< trust the input's per-point time when it has one
+  double scan_period = 0.1;      ///< seconds per sweep, for time from azimuth
+  double minimum_range = 0.3;    ///< metres; closer returns are dropped (vehicle body)
+  double maximum_range = 200.0;  ///< metres; farther returns are dropped
+  bool use_ring_field = true;    ///< trust the input's ring when it has one
+  bool use_time_field = true;    ///< trust the input's per-point time when it has one
 
   int curvature_half_window = 5;     ///< neighbours on each side in the curvature sum (LOAM: 5)
   int sectors = 6;                   ///< sectors per ring, features picked evenly from each
@@ -31,12 +31,12 @@ struct ScanRegistrationConfig
   // of an occlusion shadow, which moves with the sensor: matched as an edge it inflates the estimated
   // motion (static synthetic street, edges only: +5.5 % with HDL-64; all features: +3.8 %, and -0.2 %
   // with the rejection). Grazing-beam rejection measured no effect there and is off.
-  bool reject_occluded = true;       ///< no features beside a depth discontinuity on the far side
-  double occlusion_gap_sq = 0.1;     ///< consecutive points this far apart (m^2) may be an occlusion
-  double occlusion_max_bearing = 0.1;  ///< ... if their bearings differ by less than this (rad)
-  bool reject_grazing = false;       ///< no features on surfaces nearly parallel to the beam
+  bool reject_occluded = true;           ///< no features beside a depth discontinuity on the far side
+  double occlusion_gap_sq = 0.1;         ///< consecutive points this far apart (m^2) may be an occlusion
+  double occlusion_max_bearing = 0.1;    ///< ... if their bearings differ by less than this (rad)
+  bool reject_grazing = false;           ///< no features on surfaces nearly parallel to the beam
   double grazing_gap_ratio_sq = 0.0002;  ///< gap^2 to both neighbours above this * range^2
-  int threads = 2;                   ///< threads sharing the rings of a sweep (results do not depend on it)
+  int threads = 2;                       ///< threads sharing the rings of a sweep (results do not depend on it)
 };
 
 /// Turns one sweep into a FeatureSet. Holds only its configuration and reusable buffers; a sweep never
@@ -81,8 +81,7 @@ private:
   Scratch scratch_;
   std::vector<Worker> workers_;
 
-  void bucketByRing(const Cloud& cloud, int begin, int end, bool ring_from_field, bool time_from_field,
-                    Worker& worker);
+  void bucketByRing(const Cloud& cloud, int begin, int end, bool ring_from_field, bool time_from_field, Worker& worker);
   void gatherRings(bool time_from_field, Cloud& full, std::vector<int>& ring_begin);
   void timesFromAzimuth(double start_azimuth, const std::vector<int>& ring_begin, Cloud& full);
   void extractRings(const Cloud& full, const std::vector<int>& ring_begin, int first_ring, int end_ring,

@@ -35,8 +35,8 @@ struct StampedFeatureSet
 /// Odometry -> mapping: one sweep's odometry pose and the clouds mapping needs.
 struct StampedOdometryFrame
 {
-  std_msgs::Header header;     ///< the sweep's stamp; frame_id is the odometry world frame
-  std::string child_frame_id;  ///< the odometry body frame
+  std_msgs::Header header;      ///< the sweep's stamp; frame_id is the odometry world frame
+  std::string child_frame_id;   ///< the odometry body frame
   std::string sensor_frame_id;  ///< frame of the input point clouds
   OdometryFrame frame;
 
@@ -62,28 +62,28 @@ namespace ros
 namespace message_traits
 {
 // Traits of an in-process type: those of the generated message `Wire` it serializes as.
-#define ALOAM_STAGE_MESSAGE_TRAITS(T, Wire)                                                                            \
-  template <>                                                                                                          \
-  struct MD5Sum<T>                                                                                                     \
-  {                                                                                                                    \
-    static const char* value() { return MD5Sum<Wire>::value(); }                                                  \
-    static const char* value(const T&) { return value(); }                                                             \
-  };                                                                                                                   \
-  template <>                                                                                                          \
-  struct DataType<T>                                                                                                   \
-  {                                                                                                                    \
-    static const char* value() { return DataType<Wire>::value(); }                                             \
-    static const char* value(const T&) { return value(); }                                                             \
-  };                                                                                                                   \
-  template <>                                                                                                          \
-  struct Definition<T>                                                                                                 \
-  {                                                                                                                    \
-    static const char* value() { return Definition<Wire>::value(); }                                           \
-    static const char* value(const T&) { return value(); }                                                             \
-  };                                                                                                                   \
-  template <>                                                                                                          \
-  struct HasHeader<T> : TrueType                                                                                       \
-  {                                                                                                                    \
+#define ALOAM_STAGE_MESSAGE_TRAITS(T, Wire)                          \
+  template <>                                                        \
+  struct MD5Sum<T>                                                   \
+  {                                                                  \
+    static const char* value() { return MD5Sum<Wire>::value(); }     \
+    static const char* value(const T&) { return value(); }           \
+  };                                                                 \
+  template <>                                                        \
+  struct DataType<T>                                                 \
+  {                                                                  \
+    static const char* value() { return DataType<Wire>::value(); }   \
+    static const char* value(const T&) { return value(); }           \
+  };                                                                 \
+  template <>                                                        \
+  struct Definition<T>                                               \
+  {                                                                  \
+    static const char* value() { return Definition<Wire>::value(); } \
+    static const char* value(const T&) { return value(); }           \
+  };                                                                 \
+  template <>                                                        \
+  struct HasHeader<T> : TrueType                                     \
+  {                                                                  \
   };
 
 ALOAM_STAGE_MESSAGE_TRAITS(aloam::ros_io::StampedFeatureSet, aloam_nodelet::FeatureClouds)

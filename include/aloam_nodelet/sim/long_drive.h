@@ -21,13 +21,13 @@ namespace sim
 {
 struct LongDriveOptions
 {
-  unsigned seed = 1;              // same seed, same street and same sweeps
-  double speed = 10.0;            // m/s along +x
-  double scan_period = 0.1;       // seconds per sweep
-  double height_m = 1.8;          // sensor above the ground
+  unsigned seed = 1;               // same seed, same street and same sweeps
+  double speed = 10.0;             // m/s along +x
+  double scan_period = 0.1;        // seconds per sweep
+  double height_m = 1.8;           // sensor above the ground
   double weave_amplitude_m = 1.0;  // lateral weave within the lane
   double weave_period_s = 16.0;
-  double tile_length_m = 250.0;   // the street is generated in tiles of this length
+  double tile_length_m = 250.0;  // the street is generated in tiles of this length
   /// Tiles within this distance (m) of the sensor are in the scene; more than the lidar's range.
   double reach_m = 130.0;
   double range_noise_sigma = 0.01;  // metres

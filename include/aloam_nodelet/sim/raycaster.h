@@ -40,8 +40,8 @@ constexpr double kMaxIntensity = 255.0;
 /// omitted. Points carry ring, time and an intensity in [0, 255] (surface reflectivity times the
 /// cosine of the incidence angle). Noise and dropout depend only on (seed, column, ring).
 /// If `surface_ids` is given it receives the scene surface id of every point (parallel to the cloud).
-Cloud scan(const Scene& scene, const SensorModel& model, const PoseFunction& sensor_pose_at,
-           const ScanOptions& options, std::vector<int>* surface_ids = nullptr);
+Cloud scan(const Scene& scene, const SensorModel& model, const PoseFunction& sensor_pose_at, const ScanOptions& options,
+           std::vector<int>* surface_ids = nullptr);
 
 /// One sweep from a fixed pose (world <- sensor).
 Cloud scanStatic(const Scene& scene, const SensorModel& model, const Eigen::Isometry3d& pose,

@@ -47,7 +47,7 @@ struct Aabb
 /// Result of a ray-vs-shape test.
 struct ShapeHit
 {
-  double distance = 0.0;  // along the unit ray direction
+  double distance = 0.0;                              // along the unit ray direction
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit outward surface normal at the hit
 };
 
@@ -58,8 +58,7 @@ class PlanePatch
 {
 public:
   /// Throws std::invalid_argument for non-finite or empty bounds.
-  PlanePatch(double slope_x, double slope_y, double offset_z, double x_min, double x_max, double y_min,
-             double y_max);
+  PlanePatch(double slope_x, double slope_y, double offset_z, double x_min, double x_max, double y_min, double y_max);
   static PlanePatch horizontal(double z, double x_min, double x_max, double y_min, double y_max);
 
   double heightAt(double x, double y) const { return slope_x_ * x + slope_y_ * y + offset_z_; }
@@ -175,7 +174,7 @@ Aabb shapeBounds(const Shape& shape);
 /// Nearest surface along a ray in a scene.
 struct Hit
 {
-  double distance = 0.0;  // metres along the unit ray direction
+  double distance = 0.0;                              // metres along the unit ray direction
   Eigen::Vector3d point = Eigen::Vector3d::Zero();    // hit point, scene (world) frame
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();  // unit surface normal facing the ray origin
   int surface_id = -1;                                // index of the primitive in the scene
@@ -185,12 +184,12 @@ struct Hit
 /// Parameters of Scene::urbanStreet. Lengths in metres; *_min/*_max are uniform ranges.
 struct UrbanStreetOptions
 {
-  double length_m = 300.0;      // the street centerline runs along +x from x = 0 to x = length_m
-  double end_margin_m = 60.0;   // buildings and ground continue this far beyond both ends
-  double ground_margin_m = 200.0;  // ground extends this far beyond the ends and from the centerline
-  double street_width_min_m = 12.0;    // curb to curb
+  double length_m = 300.0;           // the street centerline runs along +x from x = 0 to x = length_m
+  double end_margin_m = 60.0;        // buildings and ground continue this far beyond both ends
+  double ground_margin_m = 200.0;    // ground extends this far beyond the ends and from the centerline
+  double street_width_min_m = 12.0;  // curb to curb
   double street_width_max_m = 16.0;
-  double sidewalk_width_m = 3.0;   // curb to the nominal facade line
+  double sidewalk_width_m = 3.0;  // curb to the nominal facade line
   double curb_height_m = 0.15;
   double sidewalk_segment_m = 20.0;  // sidewalks are split into slabs of this length
   double building_length_min_m = 10.0;
@@ -246,8 +245,7 @@ public:
 
   /// Nearest hit along `direction` (any non-zero length) from `origin` within `max_range` metres;
   /// nullopt if nothing is hit or the direction is zero.
-  std::optional<Hit> intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
-                               double max_range) const;
+  std::optional<Hit> intersect(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction, double max_range) const;
   /// Same answer as `intersect`, testing every primitive (reference for tests).
   std::optional<Hit> intersectBruteForce(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
                                          double max_range) const;

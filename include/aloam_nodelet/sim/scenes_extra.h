@@ -39,14 +39,14 @@ Scene urbanStreetWithHill(unsigned seed, double length_m, const GroundProfile& p
 struct CorridorOptions
 {
   double length_m = 100.0;
-  double width_m = 2.5;             // wall to wall
-  double height_m = 3.0;            // floor (z = 0) to ceiling
+  double width_m = 2.5;   // wall to wall
+  double height_m = 3.0;  // floor (z = 0) to ceiling
   double wall_thickness_m = 0.4;
-  double feature_spacing_m = 8.0;   // mean spacing of doors / recesses along each wall
-  double spacing_jitter_m = 1.5;    // uniform jitter of that spacing
+  double feature_spacing_m = 8.0;  // mean spacing of doors / recesses along each wall
+  double spacing_jitter_m = 1.5;   // uniform jitter of that spacing
   double door_width_m = 1.0;
-  double recess_depth_m = 0.3;      // doors are recessed this far behind the wall face
-  double light_spacing_m = 4.0;     // ceiling lights (small boxes)
+  double recess_depth_m = 0.3;   // doors are recessed this far behind the wall face
+  double light_spacing_m = 4.0;  // ceiling lights (small boxes)
 };
 
 /// Indoor corridor with doors / recesses on alternating walls (deterministic for a seed).

@@ -13,9 +13,9 @@ namespace sim
 /// the ground profile; heading follows the path tangent, pitch follows the ground slope.
 struct CarDriveOptions
 {
-  double speed = 10.0;           // m/s along x
-  double start_x = 10.0;         // metres, x at t = 0
-  double height_m = 1.8;         // sensor height above the ground
+  double speed = 10.0;             // m/s along x
+  double start_x = 10.0;           // metres, x at t = 0
+  double height_m = 1.8;           // sensor height above the ground
   double weave_amplitude_m = 1.5;  // lateral weave y = A sin(2 pi t / period)
   double weave_period_s = 12.0;
   GroundProfile ground = GroundProfile::flat();
@@ -27,15 +27,15 @@ struct CarDriveOptions
 /// in the pattern left, right, right, left (yaw stays within +-rate * duration).
 struct HandHeldOptions
 {
-  double speed = 1.4;               // m/s along x
-  double start_x = 3.0;             // metres
-  double height_m = 1.5;            // mean sensor height above the ground
+  double speed = 1.4;     // m/s along x
+  double start_x = 3.0;   // metres
+  double height_m = 1.5;  // mean sensor height above the ground
   double bob_amplitude_m = 0.03;
   double bob_frequency_hz = 2.0;
   double roll_amplitude_rad = 0.01;
   double burst_rate_rad_s = 1.5707963267948966;  // 90 deg/s
-  double burst_duration_s = 0.5;    // plateau + one edge (the turn is burst_rate * duration)
-  double burst_edge_s = 0.1;        // length of each raised-cosine edge
+  double burst_duration_s = 0.5;                 // plateau + one edge (the turn is burst_rate * duration)
+  double burst_edge_s = 0.1;                     // length of each raised-cosine edge
   double burst_interval_s = 4.0;
   double first_burst_s = 2.0;
   GroundProfile ground = GroundProfile::flat();
