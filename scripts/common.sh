@@ -20,6 +20,8 @@ ALOAM_DEBIAN_PACKAGES=(
   python3-rostest librostest-dev python3-rosbag python3-nodelet python3-roslaunch libgtest-dev
   ros-message-generation ros-message-runtime python3-genmsg python3-gencpp python3-genpy libstd-msgs-dev
   python3-numpy python3-rospy python3-tf2-ros rviz python3-matplotlib
+  python3-diagnostic-msgs python3-std-srvs python3-nav-msgs python3-sensor-msgs rosbash
+  git clang-format python3-rosdep2
 )
 
 aloam_log() { printf '\033[1m[aloam]\033[0m %s\n' "$*" >&2; }
@@ -43,6 +45,17 @@ aloam_install_deps() {
   aloam_log "installing ${#missing[@]} Debian packages: ${missing[*]}"
   $sudo apt-get update -q
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -q --no-install-recommends "${missing[@]}"
+}
+
+# The dependency self-check (scripts/check_deps.py): every Python module, command, launch-file package,
+# CMake package and package.xml key the project uses must come from ALOAM_DEBIAN_PACKAGES or its
+# dependencies. ALOAM_DEPS_OMIT="pkg ..." checks the list without those (test/tools/check_deps_catch.sh).
+aloam_check_deps() {
+  local pkgs=() pkg
+  for pkg in "${ALOAM_DEBIAN_PACKAGES[@]}"; do
+    [[ " ${ALOAM_DEPS_OMIT:-} " == *" $pkg "* ]] || pkgs+=("$pkg")
+  done
+  /usr/bin/python3 "$ALOAM_ROOT/scripts/check_deps.py" "$ALOAM_ROOT" "${pkgs[@]}"
 }
 
 # Creates the workspace (src/aloam_nodelet -> this repository) and builds it in Release.
