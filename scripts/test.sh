@@ -1,11 +1,15 @@
 #!/usr/bin/env bash
-# Installs the Debian packages, builds, and runs every test: gtest suites, rostests and the end-to-end
-# tool checks. Exits non-zero if anything fails.
+# Installs the Debian packages, checks that their list covers everything the project uses, builds (warnings
+# are errors), and runs every test: gtest suites, rostests and the end-to-end checks (formatting, the
+# self-check catching a missing package, the install space, the tools). Exits non-zero if anything fails.
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
 
 aloam_install_deps
-aloam_build
+# Before anything else: the project's own dependency list must cover what it uses (scripts/check_deps.py).
+aloam_log "dependency self-check"
+aloam_check_deps || { aloam_log "FAILED: the dependency self-check (see above)"; echo "0 passed, 1 failed, 0 skipped"; exit 1; }
+aloam_build -DALOAM_WERROR=ON
 aloam_source_ws
 
 results="$ALOAM_WS/build/test_results"
@@ -34,6 +38,9 @@ run_check() {  # run_check SCRIPT ARGS... (SCRIPT relative to test/): exit 0 pas
     *) tools_failed=$((tools_failed + 1)); aloam_log "FAILED: $1" ;;
   esac
 }
+run_check tools/check_format.sh
+run_check tools/check_deps_catch.sh
+run_check tools/check_install_space.sh "$checks_out/install_space"
 run_check tools/check_offline_bag.sh "$bin" "$checks_out/offline_bag"
 run_check tools/check_offline_kitti.sh "$bin" "$ALOAM_DATA/kitti00_101" "$checks_out/offline_kitti"
 run_check fuzz/run_fuzz.sh "$checks_out/fuzz" 45
