@@ -181,7 +181,9 @@ MatchSolveResult matchAndSolve(Pose& pose, std::size_t line_points, std::size_t 
                    });
     PoseProblem problem(pose, options.huber_delta, options.threads);
     const auto [lines, planes] = problem.addMatches(slots);
-    result = MatchSolveResult{ lines, planes, 0.0 };
+    result = MatchSolveResult();
+    result.lines = lines;
+    result.planes = planes;
     if (lines + planes < options.min_matches)
     {
       break;
