@@ -46,7 +46,9 @@ constexpr const char* kUsage =
     "  --keep-every N     use only every Nth sweep (0, N, 2N, ...) with its real stamp, as behind a throttle\n"
     "  --baseline         the handling of degeneracy and time of commit 81f6493 (A-LOAM-like): a weak direction\n"
     "                     keeps the whole prediction, and the last motion is the prediction and the deskew\n"
-    "                     motion whatever the time between stamps\n";
+    "                     motion whatever the time between stamps\n"
+    "  --odometry-min-constraint X, --mapping-min-constraint X\n"
+    "                     the stages' min_constraint (directions weaker than X are degenerate)\n";
 
 struct Options
 {
@@ -54,6 +56,7 @@ struct Options
   bool deskew = false;
   bool baseline = false;
   std::size_t keep_every = 1;
+  std::optional<double> odometry_min_constraint, mapping_min_constraint;
   std::optional<double> minimum_range;
   double kitti_vertical_correction = aloam::io::kKittiVerticalCorrectionDeg;
   std::size_t max_frames = 0;
@@ -228,6 +231,16 @@ bool parse(int argc, char** argv, Options& o)
       o.deskew = true;
     else if (arg == "--baseline")
       o.baseline = true;
+    else if (arg == "--odometry-min-constraint")
+    {
+      value(number);
+      o.odometry_min_constraint = std::stod(number);
+    }
+    else if (arg == "--mapping-min-constraint")
+    {
+      value(number);
+      o.mapping_min_constraint = std::stod(number);
+    }
     else if (arg == "--keep-every")
     {
       value(number);
@@ -305,6 +318,14 @@ int main(int argc, char** argv)
     config.registration.minimum_range = *opt.minimum_range;
   }
   config.odometry.deskew = opt.deskew;
+  if (opt.odometry_min_constraint)
+  {
+    config.odometry.min_constraint = *opt.odometry_min_constraint;
+  }
+  if (opt.mapping_min_constraint)
+  {
+    config.mapping.min_constraint = *opt.mapping_min_constraint;
+  }
   if (opt.baseline)
   {
     config.odometry.degeneracy_remap = false;
