@@ -107,7 +107,8 @@ value() {
 
 start_all=$(date +%s)
 status=0
-printf "%-20s %4s %6s | %-27s | %-27s\n" "" "" "" "new: ate_m rot_deg/100m back" "baseline: ate_m rot back"
+printf "%-20s %4s %6s | %-27s | %-27s | %s\n" case seed frames "new: ate_m rot_deg/100m back" \
+  "baseline: ate_m rot back" "both runs"
 for row in "${case_table[@]}"; do
   read -r name scene trajectory sensor duration keep segments max_ate max_rot max_back <<<"$row"
   if [ -n "${CASES:-}" ] && ! grep -qw "$name" <<<"$CASES"; then
@@ -126,9 +127,9 @@ for row in "${case_table[@]}"; do
     fi
     t0=$(date +%s)
     run_mode "$run" new "$sensor" "$segments" || { echo "FAIL: $name seed $seed: new handling (see $run)"; status=1; continue; }
-    t1=$(date +%s)
     run_mode "$run" baseline "$sensor" "$segments" --baseline ||
       { echo "FAIL: $name seed $seed: baseline (see $run)"; status=1; continue; }
+    t1=$(date +%s)
     rm -f "$run/sim.bag"
     read -r ate rot back steps <"$run/new.fig"
     read -r bate brot bback bsteps <"$run/baseline.fig"
@@ -149,7 +150,7 @@ for target in "${targets[@]}"; do
         limit=$(awk -v r="$r" -v f="$d" 'BEGIN {if (r != "") print r * f}') what="$a $c (${d}x $b: $r)" ;;
       better) v=$(value "$a" "$seed" new "$b") limit=$(value "$a" "$seed" baseline "$b") what="$a $b vs baseline" ;;
     esac
-    [ -n "$v" ] && [ -n "$limit" ] || continue  # a case not run (CASES) or failed above
+    if [ -z "$v" ] || [ -z "$limit" ]; then continue; fi  # a case not run (CASES) or failed above
     if [ "$kind" = better ]; then
       ok=$(awk -v v="$v" -v m="$limit" 'BEGIN {print (v < m) ? 1 : 0}')
     else
