@@ -126,7 +126,8 @@ for row in "${case_table[@]}"; do
       continue
     fi
     t0=$(date +%s)
-    run_mode "$run" new "$sensor" "$segments" || { echo "FAIL: $name seed $seed: new handling (see $run)"; status=1; continue; }
+    run_mode "$run" new "$sensor" "$segments" ||
+      { echo "FAIL: $name seed $seed: new handling (see $run)"; status=1; continue; }
     run_mode "$run" baseline "$sensor" "$segments" --baseline ||
       { echo "FAIL: $name seed $seed: baseline (see $run)"; status=1; continue; }
     t1=$(date +%s)
