@@ -123,7 +123,7 @@ bool LaserMapping::matchPlane(const Point& p, const Pose& pose, PlaneMatch& matc
   return true;
 }
 
-int LaserMapping::solve(Pose& pose, MappingResult& result)
+MatchSolveResult LaserMapping::solve(Pose& pose, MappingResult& result)
 {
   const MatchSolveOptions options = matchSolveOptionsOf(config_);
   const MatchSolveResult r = matchAndSolve(
@@ -133,7 +133,8 @@ int LaserMapping::solve(Pose& pose, MappingResult& result)
   result.corner_matches = r.lines;
   result.plane_matches = r.planes;
   result.constraint = r.constraint;
-  return r.lines + r.planes;
+  result.degenerate = r.degenerate;
+  return r;
 }
 
 void LaserMapping::insert(const Pose& pose)
@@ -204,11 +205,16 @@ MappingResult LaserMapping::registerFrame(const OdometryFrame& frame)
   if (static_cast<int>(submap_corners_.size()) >= config_.min_map_corners &&
       static_cast<int>(submap_surfs_.size()) >= config_.min_map_surfs)
   {
-    const int matches = solve(pose, result);
+    const MatchSolveResult solved = solve(pose, result);
+    const bool enough = solved.lines + solved.planes >= config_.min_correspondences;
     const bool sane = pose.isFinite() && (pose.t - prediction.t).norm() < config_.cube_size;
-    if (matches >= config_.min_correspondences && result.constraint >= config_.min_constraint && sane)
+    if (enough && result.constraint >= config_.min_constraint && sane)
     {
       result.status = MappingStatus::kOk;
+    }
+    else if (enough && sane && solved.remapped)
+    {
+      result.status = MappingStatus::kRemapped;  // the prediction kept along the weak directions only
     }
     else
     {

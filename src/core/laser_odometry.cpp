@@ -14,6 +14,16 @@ Eigen::Vector3d vec(const Point& p)
   return Eigen::Vector3d(p.x, p.y, p.z);
 }
 
+// Ratios of durations this close to 1 are 1: stamps rounded to nanoseconds, or a spacing equal to the scan
+// period, must reproduce the unscaled motion bit for bit (a steady rate behaves as without time scaling).
+constexpr double kUnitRatioTolerance = 1e-6;
+
+double timeRatio(double numerator, double denominator)
+{
+  const double ratio = numerator / denominator;
+  return std::fabs(ratio - 1.0) < kUnitRatioTolerance ? 1.0 : ratio;
+}
+
 // Rings [first, last] clipped to the rings a cloud has.
 std::pair<int, int> clippedRings(const std::vector<KdTree>& ring_trees, int first, int last)
 {
@@ -71,6 +81,8 @@ void LaserOdometry::reset()
   last_surfs_.reset();
   last_indexed_ = false;
   last_distorted_ = false;
+  motion_dt_ = 0.0;
+  last_stamp_ = 0.0;
 }
 
 void LaserOdometry::indexLast()
@@ -167,7 +179,29 @@ LaserOdometry::Matches LaserOdometry::solve(const Cloud& sharp, const Cloud& fla
       motion, sharp.size(), flat.size(), options,
       [&](int i, const Pose& m, LineMatch& slot) { return matchEdge(sharp.points[i], m, slot); },
       [&](int i, const Pose& m, PlaneMatch& slot) { return matchPlane(flat.points[i], m, slot); });
-  return Matches{ r.lines, r.planes, r.constraint };
+  return Matches{ r.lines, r.planes, r.constraint, r.degenerate, r.remapped };
+}
+
+Pose LaserOdometry::predict(double dt) const
+{
+  if (!config_.constant_velocity)
+  {
+    return Pose();
+  }
+  if (!config_.time_scaling || !(dt > 0.0) || !(motion_dt_ > 0.0))
+  {
+    return motion_;
+  }
+  return motion_.scaled(timeRatio(dt, motion_dt_));
+}
+
+Pose LaserOdometry::perScanPeriod(const Pose& motion, double dt, double scan_period) const
+{
+  if (!config_.time_scaling || !(dt > 0.0) || !(scan_period > 0.0))
+  {
+    return motion;
+  }
+  return motion.scaled(timeRatio(scan_period, dt));
 }
 
 void deskewToSweepEnd(const Cloud& in, const Pose& motion, double scan_period, Cloud& out)
@@ -228,6 +262,9 @@ OdometryFrame LaserOdometry::track(const std::shared_ptr<const FeatureSet>& feat
   frame.stamp = features->stamp;
   const bool motion_unknown = motion_unknown_;
   motion_unknown_ = false;
+  // Seconds since the previous sweep; 0 when unknown (first sweep, repeated or earlier stamp).
+  const double dt = initialized() ? std::max(features->stamp - last_stamp_, 0.0) : 0.0;
+  frame.dt = dt;
 
   if (!initialized())
   {
@@ -236,7 +273,7 @@ OdometryFrame LaserOdometry::track(const std::shared_ptr<const FeatureSet>& feat
   }
   else
   {
-    Pose motion = config_.constant_velocity ? motion_ : Pose();
+    Pose motion = predict(dt);
     const Pose prior = motion;
     frame.status = OdometryStatus::kDegraded;
     if (static_cast<int>(last_corners_->size()) >= config_.min_last_corners &&
@@ -245,23 +282,31 @@ OdometryFrame LaserOdometry::track(const std::shared_ptr<const FeatureSet>& feat
       // Deskew with the predicted motion, then match as a rigid sweep (as KISS-ICP does). Optimising the
       // deskew together with the motion (LOAM) measured unstable: a velocity error deskews both the sweep
       // and, later, the reference it becomes, and so it persists and grows. Against a still-distorted
-      // previous sweep, match distorted to distorted: both carry the same distortion.
+      // previous sweep, match distorted to distorted: both carry the same distortion. The sensor moves
+      // by velocity x scan_period within the sweep, not by the whole stamp-to-stamp motion.
       const bool deskew = config_.deskew && features->has_time && !last_distorted_;
       Cloud sharp, flat;
       if (deskew)
       {
-        deskewToSweepEnd(features->sharp, prior, features->scan_period, sharp);
-        deskewToSweepEnd(features->flat, prior, features->scan_period, flat);
+        const Pose within = perScanPeriod(prior, dt, features->scan_period);
+        deskewToSweepEnd(features->sharp, within, features->scan_period, sharp);
+        deskewToSweepEnd(features->flat, within, features->scan_period, flat);
       }
       const Matches m = solve(deskew ? sharp : features->sharp, deskew ? flat : features->flat, motion);
       frame.corner_matches = m.corners;
       frame.plane_matches = m.planes;
       frame.constraint = m.constraint;
-      const bool enough = m.corners + m.planes >= config_.min_correspondences && m.constraint >= config_.min_constraint;
+      frame.degenerate = m.degenerate;
+      const bool enough = m.corners + m.planes >= config_.min_correspondences;
+      const bool strong = m.constraint >= config_.min_constraint;
       const bool sane = motion.isFinite() && motion.t.norm() <= config_.max_translation_per_sweep;
-      if (enough && sane)
+      if (enough && strong && sane)
       {
         frame.status = OdometryStatus::kOk;
+      }
+      else if (enough && sane && m.remapped)
+      {
+        frame.status = OdometryStatus::kRemapped;  // the solve already kept the prior along the weak directions
       }
       else
       {
@@ -269,13 +314,14 @@ OdometryFrame LaserOdometry::track(const std::shared_ptr<const FeatureSet>& feat
       }
     }
     motion_ = motion;
+    motion_dt_ = dt;
     pose_ = pose_ * motion;
   }
 
   frame.pose = pose_;
   frame.motion = motion_;
   // After a gap the solved motion spans the gap, not this sweep: no deskewing with it, no prior from it.
-  const Pose sweep_motion = motion_unknown ? Pose() : motion_;
+  const Pose sweep_motion = motion_unknown ? Pose() : perScanPeriod(motion_, dt, features->scan_period);
   frame.distorted = frame.distorted || (motion_unknown && config_.deskew && features->has_time);
   frame.corners = toSweepEnd(features, features->less_sharp, sweep_motion);
   frame.surfs = toSweepEnd(features, features->less_flat, sweep_motion);
@@ -284,6 +330,7 @@ OdometryFrame LaserOdometry::track(const std::shared_ptr<const FeatureSet>& feat
   {
     motion_ = Pose();
   }
+  last_stamp_ = features->stamp;
   last_corners_ = frame.corners;
   last_surfs_ = frame.surfs;
   last_indexed_ = false;

@@ -1,5 +1,8 @@
 #include "aloam_nodelet/core/pose_solver.h"
 
+#include <algorithm>
+#include <cstdio>
+
 #include <Eigen/Eigenvalues>
 
 #include "aloam_nodelet/core/ceres_compat.h"
@@ -93,6 +96,19 @@ double PoseProblem::constraintStrength(double lever_arm) const
   {
     return 0.0;
   }
+  return degeneracy(lever_arm, 0.0).smallest();
+}
+
+Degeneracy PoseProblem::degeneracy(double lever_arm, double threshold) const
+{
+  Degeneracy out;
+  out.lever_arm = lever_arm;
+  out.rotation = pose().q.toRotationMatrix();
+  if (matchCount() == 0)
+  {
+    out.degenerate = kTangentSize;
+    return out;
+  }
   const Eigen::Matrix<double, 4, 3> plus = quaternionPlusJacobian(q_);
   TangentMatrix normal = TangentMatrix::Zero();
   const PoseTerms pose(q_, t_);
@@ -111,7 +127,105 @@ double PoseProblem::constraintStrength(double lever_arm) const
   scale << Eigen::Vector3d::Constant(1.0 / lever_arm), Eigen::Vector3d::Ones();
   normal = scale.asDiagonal() * normal * scale.asDiagonal();
   const Eigen::SelfAdjointEigenSolver<TangentMatrix> eig(normal);
-  return eig.eigenvalues()[0];
+  out.eigenvalues = eig.eigenvalues();
+  out.eigenvectors = eig.eigenvectors();
+  out.degenerate = 0;
+  while (out.degenerate < kTangentSize && out.eigenvalues[out.degenerate] < threshold)
+  {
+    ++out.degenerate;
+  }
+  return out;
+}
+
+void PoseProblem::remap(const Pose& prior, const Degeneracy& degeneracy)
+{
+  if (degeneracy.degenerate == 0)
+  {
+    return;
+  }
+  const Pose current = pose();
+  // The step in the scaled tangent at the prior: the manifold applies rotations on the left.
+  const Eigen::AngleAxisd step_rotation(current.q * prior.q.conjugate());
+  Eigen::Matrix<double, kTangentSize, 1> step;
+  step << degeneracy.lever_arm * step_rotation.angle() * step_rotation.axis(), current.t - prior.t;
+  const auto weak = degeneracy.eigenvectors.leftCols(degeneracy.degenerate);
+  step -= weak * (weak.transpose() * step);
+  const Eigen::Vector3d rotation = step.head<3>() / degeneracy.lever_arm;
+  const double angle = rotation.norm();
+  const Eigen::Quaterniond dq =
+      angle > 0.0 ? Eigen::Quaterniond(Eigen::AngleAxisd(angle, rotation / angle)) : Eigen::Quaterniond::Identity();
+  const Eigen::Quaterniond q = (dq * prior.q).normalized();
+  const Eigen::Vector3d t = prior.t + step.tail<3>();
+  q_[0] = q.x();
+  q_[1] = q.y();
+  q_[2] = q.z();
+  q_[3] = q.w();
+  t_[0] = t.x();
+  t_[1] = t.y();
+  t_[2] = t.z();
+}
+
+std::vector<DegenerateDirection> Degeneracy::directions() const
+{
+  std::vector<DegenerateDirection> out;
+  // Left-applied rotation and added translation in the parent frame: d (parent) = R d (child).
+  const Eigen::Matrix3d to_child = rotation.transpose();
+  for (int i = 0; i < degenerate; ++i)
+  {
+    DegenerateDirection d;
+    d.rotation = to_child * eigenvectors.col(i).head<3>();
+    d.translation = to_child * eigenvectors.col(i).tail<3>();
+    // An eigenvector's sign is arbitrary: make the largest component positive, for stable reports.
+    Eigen::Matrix<double, 6, 1> v;
+    v << d.rotation, d.translation;
+    Eigen::Index largest = 0;
+    v.cwiseAbs().maxCoeff(&largest);
+    if (v[largest] < 0.0)
+    {
+      d.rotation = -d.rotation;
+      d.translation = -d.translation;
+    }
+    d.eigenvalue = eigenvalues[i];
+    out.push_back(d);
+  }
+  return out;
+}
+
+std::string describe(const DegenerateDirection& direction)
+{
+  const auto part = [](const char* what, const Eigen::Vector3d& v)
+  {
+    const Eigen::Vector3d u = v.normalized();
+    char text[96];
+    std::snprintf(text, sizeof(text), "%s (%.2f, %.2f, %.2f)", what, u.x(), u.y(), u.z());
+    return std::string(text);
+  };
+  const double r = direction.rotation.norm(), t = direction.translation.norm();
+  // A part under a quarter of the direction's length is left out.
+  constexpr double kMinorShare = 0.25;
+  std::string text =
+      t >= r ? part("translation along", direction.translation) : part("rotation about", direction.rotation);
+  const double minor = std::min(r, t);
+  if (minor >= kMinorShare)
+  {
+    text += " with " +
+            (t >= r ? part("rotation about", direction.rotation) : part("translation along", direction.translation));
+  }
+  return text;
+}
+
+std::string describe(const std::vector<DegenerateDirection>& directions)
+{
+  if (directions.empty())
+  {
+    return "none";
+  }
+  std::string text;
+  for (const DegenerateDirection& d : directions)
+  {
+    text += (text.empty() ? "" : "; ") + describe(d);
+  }
+  return text;
 }
 
 }  // namespace aloam

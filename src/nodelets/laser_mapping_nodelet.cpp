@@ -72,6 +72,7 @@ private:
   // The registered frame whose map update is still to come (updateMapLocked).
   aloam::ros_io::StampedOdometryFrame::ConstPtr unmapped_;
   std::size_t degraded_frames_ = 0;
+  std::size_t remapped_frames_ = 0;
   StageMonitor monitor_;
 
   // Hand-over of the newest frame to the worker.
@@ -191,7 +192,10 @@ void LaserMappingNodelet::onInit()
                   s.add("edge matches", last_result_.corner_matches);
                   s.add("plane matches", last_result_.plane_matches);
                   s.addf("constraint (degenerate below min)", "%.1f", last_result_.constraint);
+                  s.add("degenerate directions", last_result_.degenerate.size());
+                  s.add("degenerate (sensor frame)", aloam::describe(last_result_.degenerate));
                   s.add("degraded frames", degraded_frames_);
+                  s.add("remapped frames (partially degenerate)", remapped_frames_);
                   s.add("map edge points", last_result_.map_corners);
                   s.add("map plane points", last_result_.map_surfs);
                   s.add("map cubes", last_result_.cubes);
@@ -200,6 +204,12 @@ void LaserMappingNodelet::onInit()
                   {
                     s.summary(diagnostic_msgs::DiagnosticStatus::WARN,
                               "degraded: too few or degenerate matches, prediction used");
+                  }
+                  else if (last_result_.status == aloam::MappingStatus::kRemapped)
+                  {
+                    s.summary(diagnostic_msgs::DiagnosticStatus::OK,
+                              "partially degenerate, remapped: prediction kept along " +
+                                  aloam::describe(last_result_.degenerate));
                   }
                 });
   updater_ = std::make_unique<BackgroundWorker>(
@@ -364,6 +374,12 @@ void LaserMappingNodelet::registerFrameLocked(const aloam::ros_io::StampedOdomet
     NODELET_WARN_THROTTLE(kThrottleSeconds, "mapping degraded (%d edge, %d plane matches, constraint %.1f)",
                           result.corner_matches, result.plane_matches, result.constraint);
   }
+  else if (result.status == aloam::MappingStatus::kRemapped)
+  {
+    ++remapped_frames_;
+    NODELET_DEBUG_THROTTLE(kThrottleSeconds, "mapping partially degenerate, prediction kept along %s",
+                           aloam::describe(result.degenerate).c_str());
+  }
   trajectory_.push_back(result.pose.isometry());
   trajectory_stamps_.push_back(msg->header.stamp.toSec());
   // Bounded like the paths; the oldest tenth goes at once, so that a full trajectory is not shifted per frame.
@@ -472,6 +488,7 @@ void LaserMappingNodelet::reconfigureCb(const LaserMappingConfig& c)
   config.outer_iterations = c.outer_iterations;
   config.plane_neighbours = c.plane_neighbours;
   config.eviction_radius = c.eviction_radius;
+  config.degeneracy_remap = c.degeneracy_remap;
   const std::size_t points_before = mapping_->map().cornerCount() + mapping_->map().surfCount();
   mapping_->setConfig(config);
   NODELET_INFO("reconfigured: cube %.1f m, leaves %.2f / %.2f m, %d x %d iterations; map %zu points (was %zu)",

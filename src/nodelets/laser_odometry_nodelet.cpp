@@ -46,6 +46,7 @@ private:
   StampGuard stamps_;
   aloam::OdometryFrame last_frame_;  // for diagnostics (clouds not kept)
   std::size_t degraded_frames_ = 0;
+  std::size_t remapped_frames_ = 0;
   StageMonitor monitor_;
 
   // Indexing waits for mapping's answer to the frame (aft_mapped_to_init), at most index_wait_: until
@@ -105,12 +106,21 @@ void LaserOdometryNodelet::onInit()
                   s.add("edge matches", last_frame_.corner_matches);
                   s.add("plane matches", last_frame_.plane_matches);
                   s.addf("constraint (degenerate below min)", "%.1f", last_frame_.constraint);
+                  s.add("degenerate directions", last_frame_.degenerate.size());
+                  s.add("degenerate (sensor frame)", aloam::describe(last_frame_.degenerate));
                   s.add("degraded frames", degraded_frames_);
+                  s.add("remapped frames (partially degenerate)", remapped_frames_);
                   stamps_.report(s);
                   if (last_frame_.status == aloam::OdometryStatus::kDegraded)
                   {
                     s.summary(diagnostic_msgs::DiagnosticStatus::WARN,
                               "degraded: too few or degenerate matches, motion prior used");
+                  }
+                  else if (last_frame_.status == aloam::OdometryStatus::kRemapped)
+                  {
+                    s.summary(
+                        diagnostic_msgs::DiagnosticStatus::OK,
+                        "partially degenerate, remapped: prior kept along " + aloam::describe(last_frame_.degenerate));
                   }
                 });
   features_sub_ = nh.subscribe("laser_features", 2, &LaserOdometryNodelet::featuresCb, this);
@@ -129,6 +139,8 @@ void LaserOdometryNodelet::reconfigureCb(const LaserOdometryConfig& c)
   config.distance_sq_threshold = c.distance_sq_threshold;
   config.nearby_scan = c.nearby_scan;
   config.deskew = c.deskew;
+  config.degeneracy_remap = c.degeneracy_remap;
+  config.time_scaling = c.time_scaling;
   odometry_->setConfig(config);  // applies from the next sweep
   aloam::StampCheckConfig stamp_config = stamps_.config();
   stamp_config.max_gap_sweeps = c.max_gap_sweeps;
@@ -228,6 +240,12 @@ bool LaserOdometryNodelet::process(const aloam::ros_io::StampedFeatureSet::Const
     ++degraded_frames_;
     NODELET_WARN_THROTTLE(kThrottleSeconds, "odometry degraded (%d edge, %d plane matches, constraint %.1f)",
                           out->frame.corner_matches, out->frame.plane_matches, out->frame.constraint);
+  }
+  else if (out->frame.status == aloam::OdometryStatus::kRemapped)
+  {
+    ++remapped_frames_;
+    NODELET_DEBUG_THROTTLE(kThrottleSeconds, "odometry partially degenerate, prior kept along %s",
+                           aloam::describe(out->frame.degenerate).c_str());
   }
   frame_pub_.publish(out);  // never modified after this
 

@@ -102,6 +102,7 @@ aloam_nodelet::OdometryFrame toWire(const StampedOdometryFrame& in)
   out.corner_matches = f.corner_matches;
   out.plane_matches = f.plane_matches;
   out.constraint = f.constraint;
+  out.degenerate_directions = static_cast<std::uint8_t>(f.degenerate.size());
   writeCloud(f.corners, in.header, out.corners);
   writeCloud(f.surfs, in.header, out.surfs);
   writeCloud(f.full, in.header, out.full);
@@ -117,7 +118,7 @@ void fromWire(const aloam_nodelet::OdometryFrame& in, StampedOdometryFrame& out)
   f.stamp = in.header.stamp.toSec();
   f.pose = fromPoseMsg(in.pose);
   f.motion = fromPoseMsg(in.motion);
-  f.status = in.status <= static_cast<std::uint8_t>(OdometryStatus::kDegraded) ? static_cast<OdometryStatus>(in.status)
+  f.status = in.status <= static_cast<std::uint8_t>(OdometryStatus::kRemapped) ? static_cast<OdometryStatus>(in.status)
                                                                                : OdometryStatus::kDegraded;
   f.distorted = in.distorted;
   f.corner_matches = in.corner_matches;

@@ -2,6 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <memory>
+#include <stdexcept>
+#include <vector>
 
 namespace aloam
 {
@@ -11,6 +14,20 @@ namespace
 {
 constexpr double kPi = 3.14159265358979323846;
 constexpr int kBurstPatternLength = 4;
+constexpr int kTurnNodes = 1000;  // table of positions along a turn
+constexpr int kTurnSubsteps = 8;  // Simpson sub-intervals per table interval (even)
+constexpr double kDegToRad = kPi / 180.0;
+// handHeldBurstsOptions.
+constexpr double kBurstsRateDegS = 120.0;
+constexpr double kBurstsInterval = 3.0;
+constexpr double kBurstsStopInterval = 6.0;
+constexpr double kBurstsFirstStop = 3.5;
+// officeTurnWalk / stairsWalkOptions.
+constexpr double kOfficeStartX = 2.0;
+constexpr double kStairsSpeed = 0.6;
+constexpr double kStairsStartX = -3.0;
+constexpr double kStairsBob = 0.04;
+constexpr double kStairsBurstRateDegS = 45.0;
 
 /// Integral from -infinity to x of a smooth slope ramp rising from 0 to 1 (smoothstep
 /// 3 u^2 - 2 u^3) over [center - half_blend, center + half_blend].
@@ -107,6 +124,50 @@ double burstAngle(double tau, double duration, double edge)
   }
   return duration;
 }
+double smoothstep(double u)
+{
+  u = std::clamp(u, 0.0, 1.0);
+  return u * u * (3.0 - 2.0 * u);
+}
+
+/// Time spent walking by time t (t minus the time lost to the stops, weighted by the speed dip).
+double walkedTime(const HandHeldOptions& o, double t)
+{
+  const double since_first = t - o.first_stop_s;
+  if (o.stop_interval_s <= 0.0 || since_first <= 0.0)
+  {
+    return t;
+  }
+  const double dip = o.stop_edge_s + o.stop_still_s;  // burst-profile "duration" of one stop
+  const long index = static_cast<long>(std::floor(since_first / o.stop_interval_s));
+  const double tau = since_first - static_cast<double>(index) * o.stop_interval_s;
+  return t - static_cast<double>(index) * dip - burstAngle(tau, dip, o.stop_edge_s);
+}
+
+/// Heading of a turn of `angle` spread over `length` metres, `s` metres into it.
+double turnHeading(double angle, double length, double s)
+{
+  return angle * smoothstep(s / length);
+}
+
+/// Simpson integral of the unit heading vector over [s0, s1] of a turn.
+Eigen::Vector2d integrateTurn(double angle, double length, double s0, double s1, int substeps)
+{
+  const double h = (s1 - s0) / substeps;
+  Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+  for (int i = 0; i <= substeps; ++i)
+  {
+    const double weight = (i == 0 || i == substeps) ? 1.0 : (i % 2 == 1 ? 4.0 : 2.0);
+    const double heading = turnHeading(angle, length, s0 + i * h);
+    sum += weight * Eigen::Vector2d(std::cos(heading), std::sin(heading));
+  }
+  return sum * h / 3.0;
+}
+
+Eigen::Vector2d direction(double heading)
+{
+  return Eigen::Vector2d(std::cos(heading), std::sin(heading));
+}
 }  // namespace
 
 GroundProfile GroundProfile::flat()
@@ -182,8 +243,10 @@ PoseFunction handHeld(const HandHeldOptions& options)
 {
   return [options](double t)
   {
-    const double x = options.start_x + options.speed * t;
-    const double bob_phase = 2.0 * kPi * options.bob_frequency_hz * t;
+    // Bobbing and sway follow the steps: they pause while the walker stands still.
+    const double walked = walkedTime(options, t);
+    const double x = options.start_x + options.speed * walked;
+    const double bob_phase = 2.0 * kPi * options.bob_frequency_hz * walked;
     // Roll sways once per two steps (half the bobbing frequency).
     const double roll = options.roll_amplitude_rad * std::sin(0.5 * bob_phase);
     const double z = options.ground.heightAt(x) + options.height_m + options.bob_amplitude_m * std::sin(bob_phase);
@@ -204,6 +267,113 @@ PoseFunction handHeld(double speed, const GroundProfile& ground)
   return handHeld(options);
 }
 
+double handHeldDistance(const HandHeldOptions& options, double t)
+{
+  return options.speed * walkedTime(options, t);
+}
+
+double handHeldSpeed(const HandHeldOptions& options, double t)
+{
+  const double since_first = t - options.first_stop_s;
+  if (options.stop_interval_s <= 0.0 || since_first < 0.0)
+  {
+    return options.speed;
+  }
+  const long index = static_cast<long>(std::floor(since_first / options.stop_interval_s));
+  const double tau = since_first - static_cast<double>(index) * options.stop_interval_s;
+  return options.speed * (1.0 - burstRate(tau, options.stop_edge_s + options.stop_still_s, options.stop_edge_s));
+}
+
+HandHeldOptions handHeldBurstsOptions()
+{
+  HandHeldOptions options;
+  options.burst_rate_rad_s = kBurstsRateDegS * kDegToRad;
+  options.burst_interval_s = kBurstsInterval;
+  options.stop_interval_s = kBurstsStopInterval;
+  options.first_stop_s = kBurstsFirstStop;
+  return options;
+}
+
+Eigen::Vector2d turnDisplacement(double turn_angle_rad, double turn_length_m)
+{
+  return integrateTurn(turn_angle_rad, turn_length_m, 0.0, turn_length_m, 2 * kTurnNodes);
+}
+
+double turnWalkHeading(const TurnWalkOptions& options, double distance_m)
+{
+  return options.start_heading +
+         turnHeading(options.turn_angle_rad, options.turn_length_m, distance_m - options.turn_start_m);
+}
+
+TurnWalkOptions officeTurnWalk(const OfficeOptions& office)
+{
+  TurnWalkOptions options;
+  options.start_xy = Eigen::Vector2d(kOfficeStartX, 0.0);
+  options.start_heading = 0.0;
+  const Eigen::Vector2d turn = turnDisplacement(options.turn_angle_rad, options.turn_length_m);
+  options.turn_start_m = office.turnCenterX() - turn.x() - kOfficeStartX;
+  return options;
+}
+
+PoseFunction handHeldTurn(const TurnWalkOptions& options)
+{
+  // Positions along the turn (relative to its start, in the frame of the initial heading), tabulated.
+  auto table = std::make_shared<std::vector<Eigen::Vector2d>>();
+  table->reserve(kTurnNodes + 1);
+  table->push_back(Eigen::Vector2d::Zero());
+  const double node = options.turn_length_m / kTurnNodes;
+  for (int i = 0; i < kTurnNodes; ++i)
+  {
+    table->push_back(table->back() + integrateTurn(options.turn_angle_rad, options.turn_length_m, i * node,
+                                                   (i + 1) * node, kTurnSubsteps));
+  }
+  return [options, table, node](double t)
+  {
+    const double d = options.speed * t;
+    const Eigen::Rotation2Dd initial(options.start_heading);
+    const Eigen::Vector2d turn_start = options.start_xy + options.turn_start_m * direction(options.start_heading);
+    Eigen::Vector2d xy;
+    if (d <= options.turn_start_m)
+    {
+      xy = options.start_xy + d * direction(options.start_heading);
+    }
+    else if (d < options.turn_start_m + options.turn_length_m)
+    {
+      const double u = (d - options.turn_start_m) / node;
+      const int i = std::min(static_cast<int>(u), kTurnNodes - 1);
+      const double f = u - i;
+      xy = turn_start + initial * ((1.0 - f) * (*table)[i] + f * (*table)[i + 1]);
+    }
+    else
+    {
+      xy = turn_start + initial * table->back() +
+           (d - options.turn_start_m - options.turn_length_m) *
+               direction(options.start_heading + options.turn_angle_rad);
+    }
+    const double bob_phase = 2.0 * kPi * options.bob_frequency_hz * t;
+    const double roll = options.roll_amplitude_rad * std::sin(0.5 * bob_phase);
+    const double yaw = turnWalkHeading(options, d) + options.yaw_sway_rad * std::cos(0.5 * bob_phase);
+    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+    pose.linear() =
+        (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
+            .toRotationMatrix();
+    pose.translation() =
+        Eigen::Vector3d(xy.x(), xy.y(), options.height_m + options.bob_amplitude_m * std::sin(bob_phase));
+    return pose;
+  };
+}
+
+HandHeldOptions stairsWalkOptions(const StairsOptions& stairs)
+{
+  HandHeldOptions options;
+  options.speed = kStairsSpeed;
+  options.start_x = kStairsStartX;
+  options.bob_amplitude_m = kStairsBob;
+  options.burst_rate_rad_s = kStairsBurstRateDegS * kDegToRad;
+  options.ground = stairsProfile(stairs);
+  return options;
+}
+
 PoseFunction straight(const StraightOptions& options)
 {
   return [options](double t)
@@ -222,6 +392,21 @@ PoseFunction straight(double speed, const GroundProfile& ground)
   options.speed = speed;
   options.ground = ground;
   return straight(options);
+}
+
+std::vector<double> publishedSweepStarts(double duration_s, double period_s, int keep_every)
+{
+  if (!(period_s > 0.0) || keep_every < 1)
+  {
+    throw std::invalid_argument("publishedSweepStarts: period must be positive and keep_every >= 1");
+  }
+  const long sweeps = static_cast<long>(std::floor(duration_s / period_s + 1e-9));
+  std::vector<double> starts;
+  for (long k = 0; k < sweeps; k += keep_every)
+  {
+    starts.push_back(static_cast<double>(k) * period_s);
+  }
+  return starts;
 }
 
 }  // namespace sim

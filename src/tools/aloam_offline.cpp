@@ -30,6 +30,7 @@ namespace
 constexpr const char* kUsage =
     "usage: aloam_offline (--kitti DIR | --bag FILE --topic TOPIC) --sensor PRESET --trajectory OUT.txt\n"
     "                     [--tum OUT.tum] [--map OUT.pcd] [--deskew] [--minimum-range M] [--max-frames N]\n"
+    "                     [--keep-every N] [--baseline]\n"
     "\n"
     "  --kitti DIR        KITTI odometry sequence folder: DIR/velodyne/*.bin (+ DIR/times.txt)\n"
     "  --bag FILE         rosbag with sensor_msgs/PointCloud2 on --topic\n"
@@ -41,12 +42,21 @@ constexpr const char* kUsage =
     "  --minimum-range M  drop returns closer than M metres (default: 5 for --kitti, 0.3 otherwise)\n"
     "  --kitti-vertical-correction DEG\n"
     "                     raise KITTI elevations by DEG (default 0.205, KITTI's known intrinsic error; 0: off)\n"
-    "  --max-frames N     stop after N frames\n";
+    "  --max-frames N     stop after N frames\n"
+    "  --keep-every N     use only every Nth sweep (0, N, 2N, ...) with its real stamp, as behind a throttle\n"
+    "  --baseline         the handling of degeneracy and time of commit 81f6493 (A-LOAM-like): a weak direction\n"
+    "                     keeps the whole prediction, and the last motion is the prediction and the deskew\n"
+    "                     motion whatever the time between stamps\n"
+    "  --odometry-min-constraint X, --mapping-min-constraint X\n"
+    "                     the stages' min_constraint (directions weaker than X are degenerate)\n";
 
 struct Options
 {
   std::string kitti_dir, bag_file, topic, sensor, trajectory, tum, map;
   bool deskew = false;
+  bool baseline = false;
+  std::size_t keep_every = 1;
+  std::optional<double> odometry_min_constraint, mapping_min_constraint;
   std::optional<double> minimum_range;
   double kitti_vertical_correction = aloam::io::kKittiVerticalCorrectionDeg;
   std::size_t max_frames = 0;
@@ -122,15 +132,17 @@ private:
 class BagSource : public FrameSource
 {
 public:
-  BagSource(const std::string& file, const std::string& topic, double scan_period)
+  /// Every `keep_every`th message of `topic`, in bag order; stamps are the messages' header stamps.
+  BagSource(const std::string& file, const std::string& topic, double scan_period, std::size_t keep_every)
   {
     options_.scan_period = scan_period;
     bag_.open(file, rosbag::bagmode::Read);
     rosbag::View view(bag_, rosbag::TopicQuery(topic));
+    std::size_t index = 0;
     for (const rosbag::MessageInstance& m : view)
     {
       auto msg = m.instantiate<sensor_msgs::PointCloud2>();
-      if (msg)
+      if (msg && index++ % keep_every == 0)
       {
         messages_.push_back(msg);
       }
@@ -217,6 +229,27 @@ bool parse(int argc, char** argv, Options& o)
       value(o.map);
     else if (arg == "--deskew")
       o.deskew = true;
+    else if (arg == "--baseline")
+      o.baseline = true;
+    else if (arg == "--odometry-min-constraint")
+    {
+      value(number);
+      o.odometry_min_constraint = std::stod(number);
+    }
+    else if (arg == "--mapping-min-constraint")
+    {
+      value(number);
+      o.mapping_min_constraint = std::stod(number);
+    }
+    else if (arg == "--keep-every")
+    {
+      value(number);
+      o.keep_every = static_cast<std::size_t>(std::stoul(number));
+      if (o.keep_every == 0)
+      {
+        throw std::invalid_argument("--keep-every needs N >= 1");
+      }
+    }
     else if (arg == "--minimum-range")
     {
       value(number);
@@ -285,6 +318,20 @@ int main(int argc, char** argv)
     config.registration.minimum_range = *opt.minimum_range;
   }
   config.odometry.deskew = opt.deskew;
+  if (opt.odometry_min_constraint)
+  {
+    config.odometry.min_constraint = *opt.odometry_min_constraint;
+  }
+  if (opt.mapping_min_constraint)
+  {
+    config.mapping.min_constraint = *opt.mapping_min_constraint;
+  }
+  if (opt.baseline)
+  {
+    config.odometry.degeneracy_remap = false;
+    config.odometry.time_scaling = false;
+    config.mapping.degeneracy_remap = false;
+  }
 
   std::unique_ptr<FrameSource> source;
   try
@@ -295,7 +342,7 @@ int main(int argc, char** argv)
     }
     else
     {
-      source = std::make_unique<BagSource>(opt.bag_file, opt.topic, sensor->scanPeriod());
+      source = std::make_unique<BagSource>(opt.bag_file, opt.topic, sensor->scanPeriod(), opt.keep_every);
     }
   }
   catch (const std::exception& e)
@@ -306,13 +353,14 @@ int main(int argc, char** argv)
 
   const std::size_t frames = opt.max_frames > 0 ? std::min(opt.max_frames, source->size()) : source->size();
   std::cerr << "aloam_offline: " << frames << " frames, sensor " << opt.sensor
-            << (opt.deskew ? ", deskew on" : ", deskew off") << "\n";
+            << (opt.deskew ? ", deskew on" : ", deskew off") << (opt.baseline ? ", baseline (81f6493) handling" : "")
+            << "\n";
 
   aloam::Pipeline pipeline(config);
   aloam::eval::Trajectory trajectory;
   std::vector<double> stamps;
   std::vector<double> registration_ms, odometry_ms, mapping_ms, update_ms, pose_ms, total_ms;
-  std::size_t rejected = 0, degraded_odometry = 0, degraded_mapping = 0;
+  std::size_t rejected = 0, degraded_odometry = 0, degraded_mapping = 0, remapped_odometry = 0, remapped_mapping = 0;
   Frame frame;
   const bool tty = isatty(fileno(stderr));
   const auto start = std::chrono::steady_clock::now();
@@ -333,6 +381,8 @@ int main(int argc, char** argv)
         total_ms.push_back(out.timings.totalMs());
         degraded_odometry += out.odometry.status == aloam::OdometryStatus::kDegraded;
         degraded_mapping += out.mapping.status == aloam::MappingStatus::kDegraded;
+        remapped_odometry += out.odometry.status == aloam::OdometryStatus::kRemapped;
+        remapped_mapping += out.mapping.status == aloam::MappingStatus::kRemapped;
       }
       else
       {
@@ -376,6 +426,8 @@ int main(int argc, char** argv)
 
   std::cout << "frames: " << frames << "  rejected: " << rejected << "  odometry degraded: " << degraded_odometry
             << "  mapping degraded: " << degraded_mapping << "\n";
+  std::cout << "partially degenerate (remapped): odometry " << remapped_odometry << "  mapping " << remapped_mapping
+            << "\n";
   std::cout << "registration: " << summary(registration_ms) << "\n";
   std::cout << "odometry:     " << summary(odometry_ms) << "\n";
   std::cout << "mapping:      " << summary(mapping_ms) << "\n";

@@ -1,5 +1,6 @@
 // aloam_sim: deterministic simulated lidar sequences (rosbag with driver-like PointCloud2 and ground
 // truth, optionally a KITTI-layout folder) from the synthetic scenes and trajectories.
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -37,6 +38,8 @@ constexpr double kStartAzimuth = kPi;          // the sweep is cut behind the se
 constexpr double kStraightSpeed = 5.0;         // m/s
 constexpr double kSceneMargin = 150.0;         // m of street beyond the end of the trajectory
 constexpr double kCorridorCarWeave = 0.3;      // m, lateral weave of a car in the corridor
+constexpr double kTunnelCarWeave = 0.5;        // m, lateral weave of a car in the tunnel
+constexpr double kOfficeStartX = 2.0;          // m, start of the walks along the office's first corridor
 constexpr double kUrbanHandHeldStartX = 10.0;  // m
 constexpr double kVelocityStep = 1e-3;         // s, central differences of the ground-truth twist
 constexpr unsigned kSweepSeedStride = 100003U;
@@ -47,13 +50,32 @@ constexpr const char* kTfTopic = "/tf";
 constexpr const char* kWorldFrame = "world";
 
 const char* const kUsage =
-    "usage: aloam_sim --sensor PRESET --scene urban|corridor|field --trajectory car|handheld|straight\n"
-    "                 --duration SECONDS --seed N [--noise SIGMA_M] [--dropout P] --bag OUT.bag\n"
-    "                 [--kitti OUT_DIR]\n"
+    "usage: aloam_sim --sensor PRESET --scene SCENE --trajectory TRAJECTORY --duration SECONDS --seed N\n"
+    "                 [--noise SIGMA_M] [--dropout P] [--keep-every N] --bag OUT.bag [--kitti OUT_DIR]\n"
     "  --sensor PRESET    VLP16, HDL32, HDL64, VLP32C (Velodyne layout), OS1_64, OS0_64, OS1_128 (Ouster layout)\n"
+    "  --scene SCENE      urban     street with buildings, parked cars, poles, trees and a hill\n"
+    "                     corridor  straight indoor corridor 2.5 m wide, 100 m long, doors and niches\n"
+    "                     field     open ground with a handful of objects\n"
+    "                     office    L-shaped corridor 2.5 m wide (16 m, a 90 deg left turn, 24 m) with doors,\n"
+    "                               niches, cabinets, floor and ceiling\n"
+    "                     tunnel    road tunnel 6 m wide with an arched roof, a niche, light or standpipe\n"
+    "                               every 10-20 m\n"
+    "                     stairs    stairwell with one flight climbing 2.98 m over 4.5 m\n"
+    "  --trajectory TRAJECTORY\n"
+    "                     car              10 m/s along the scene with lateral weaves (tunnel: +-0.5 m)\n"
+    "                     straight         5 m/s on a straight line\n"
+    "                     handheld         1.4 m/s walk with 90 deg/s yaw bursts every 4 s (stairs: a\n"
+    "                                      0.6 m/s climb with 45 deg/s look-arounds)\n"
+    "                     handheld_bursts  walk with 120 deg/s yaw bursts every 3 s and a full stop (1 s\n"
+    "                                      standing still) every 6 s\n"
+    "                     handheld_turn    office only: walk along the first corridor, turn the corner\n"
+    "                                      and walk on along the second\n"
     "  --noise SIGMA_M    Gaussian range noise in metres (default 0.01)\n"
     "  --dropout P        probability of dropping a return (default 0)\n"
-    "  --kitti OUT_DIR    also write OUT_DIR/velodyne/%06d.bin, times.txt and poses.txt\n";
+    "  --keep-every N     publish only every N-th sweep (like a throttled topic): stamps N sweep periods\n"
+    "                     apart, each sweep still covering one period of motion from its own start, ground\n"
+    "                     truth for the published sweeps only (default 1)\n"
+    "  --kitti OUT_DIR    also write OUT_DIR/velodyne/%06d.bin, times.txt and poses.txt (published sweeps)\n";
 
 struct Options
 {
@@ -65,6 +87,7 @@ struct Options
   bool has_seed = false;
   double noise = 0.01;
   double dropout = 0.0;
+  int keep_every = 1;
   std::string bag;
   std::string kitti;
 };
@@ -116,6 +139,15 @@ Options parseArguments(int argc, char** argv)
       o.noise = number();
     else if (arg == "--dropout")
       o.dropout = number();
+    else if (arg == "--keep-every")
+    {
+      const double keep = number();
+      if (keep < 1.0 || keep > 1000.0 || keep != std::floor(keep))
+      {
+        throw std::invalid_argument("--keep-every must be an integer in [1, 1000]");
+      }
+      o.keep_every = static_cast<int>(keep);
+    }
     else if (arg == "--bag")
       o.bag = value();
     else if (arg == "--kitti")
@@ -140,13 +172,19 @@ Options parseArguments(int argc, char** argv)
   {
     throw std::invalid_argument("--noise must be >= 0 and --dropout in [0, 1)");
   }
-  if (o.scene != "urban" && o.scene != "corridor" && o.scene != "field")
+  const std::vector<std::string> scenes = { "urban", "corridor", "field", "office", "tunnel", "stairs" };
+  if (std::find(scenes.begin(), scenes.end(), o.scene) == scenes.end())
   {
     throw std::invalid_argument("unknown scene " + o.scene);
   }
-  if (o.trajectory != "car" && o.trajectory != "handheld" && o.trajectory != "straight")
+  const std::vector<std::string> trajectories = { "car", "handheld", "straight", "handheld_bursts", "handheld_turn" };
+  if (std::find(trajectories.begin(), trajectories.end(), o.trajectory) == trajectories.end())
   {
     throw std::invalid_argument("unknown trajectory " + o.trajectory);
+  }
+  if (o.trajectory == "handheld_turn" && o.scene != "office")
+  {
+    throw std::invalid_argument("--trajectory handheld_turn needs --scene office");
   }
   return o;
 }
@@ -156,10 +194,18 @@ bool isOuster(const std::string& preset)
   return preset.rfind("OS", 0) == 0;
 }
 
-/// The ground profile of a scene (the urban street has a hill, the others are flat).
+/// The ground profile of a scene (the urban street has a hill, the stairs a flight, the others are flat).
 aloam::sim::GroundProfile groundOf(const std::string& scene)
 {
-  return scene == "urban" ? aloam::sim::GroundProfile() : aloam::sim::GroundProfile::flat();
+  if (scene == "urban")
+  {
+    return aloam::sim::GroundProfile();
+  }
+  if (scene == "stairs")
+  {
+    return aloam::sim::stairsProfile();
+  }
+  return aloam::sim::GroundProfile::flat();
 }
 
 struct TrajectorySetup
@@ -177,25 +223,52 @@ TrajectorySetup makeTrajectory(const Options& o)
   {
     aloam::sim::CarDriveOptions car;
     car.ground = ground;
-    if (o.scene == "corridor")
+    if (o.scene == "corridor" || o.scene == "office")
     {
       car.start_x = aloam::sim::HandHeldOptions().start_x;
       car.weave_amplitude_m = kCorridorCarWeave;
+    }
+    else if (o.scene == "tunnel")
+    {
+      car.weave_amplitude_m = kTunnelCarWeave;
     }
     setup.pose_at = aloam::sim::carDrive(car);
     setup.start_x = car.start_x;
     setup.speed = car.speed;
   }
-  else if (o.trajectory == "handheld")
+  else if (o.trajectory == "handheld" || o.trajectory == "handheld_bursts")
   {
     aloam::sim::HandHeldOptions walk;
+    if (o.scene == "stairs")
+    {
+      walk = aloam::sim::stairsWalkOptions();
+    }
+    if (o.trajectory == "handheld_bursts")
+    {
+      const aloam::sim::HandHeldOptions bursts = aloam::sim::handHeldBurstsOptions();
+      walk.burst_rate_rad_s = bursts.burst_rate_rad_s;
+      walk.burst_interval_s = bursts.burst_interval_s;
+      walk.stop_interval_s = bursts.stop_interval_s;
+      walk.first_stop_s = bursts.first_stop_s;
+    }
     walk.ground = ground;
     if (o.scene == "urban")
     {
       walk.start_x = kUrbanHandHeldStartX;
     }
+    else if (o.scene == "office")
+    {
+      walk.start_x = kOfficeStartX;
+    }
     setup.pose_at = aloam::sim::handHeld(walk);
     setup.start_x = walk.start_x;
+    setup.speed = walk.speed;
+  }
+  else if (o.trajectory == "handheld_turn")
+  {
+    const aloam::sim::TurnWalkOptions walk = aloam::sim::officeTurnWalk();
+    setup.pose_at = aloam::sim::handHeldTurn(walk);
+    setup.start_x = walk.start_xy.x();
     setup.speed = walk.speed;
   }
   else
@@ -203,9 +276,13 @@ TrajectorySetup makeTrajectory(const Options& o)
     aloam::sim::StraightOptions line;
     line.speed = kStraightSpeed;
     line.ground = ground;
-    if (o.scene == "corridor")
+    if (o.scene == "corridor" || o.scene == "office")
     {
       line.start_x = aloam::sim::HandHeldOptions().start_x;
+    }
+    else if (o.scene == "stairs")
+    {
+      line.start_x = aloam::sim::stairsWalkOptions().start_x;
     }
     setup.pose_at = aloam::sim::straight(line);
     setup.start_x = line.start_x;
@@ -231,6 +308,35 @@ aloam::sim::Scene makeScene(const Options& o, const TrajectorySetup& trajectory)
                 << " m corridor\n";
     }
     return aloam::sim::corridorScene(o.seed, corridor);
+  }
+  const Eigen::Vector3d end = trajectory.pose_at(o.duration).translation();
+  if (o.scene == "office")
+  {
+    const aloam::sim::OfficeOptions office;
+    const double half_width = 0.5 * office.width_m;
+    const bool in_first = end.x() > 0.0 && end.x() < office.first_length_m && std::abs(end.y()) < half_width;
+    const bool in_second = end.x() > office.first_length_m - office.width_m && end.x() < office.first_length_m &&
+                           end.y() > -half_width && end.y() < office.secondEndY();
+    if (!in_first && !in_second)
+    {
+      std::cerr << "warning: the trajectory ends at (" << end.x() << ", " << end.y() << ") m, outside the office\n";
+    }
+    return aloam::sim::officeScene(o.seed, office);
+  }
+  if (o.scene == "tunnel")
+  {
+    aloam::sim::TunnelOptions tunnel;
+    tunnel.length_m = length;
+    return aloam::sim::tunnelScene(o.seed, tunnel);
+  }
+  if (o.scene == "stairs")
+  {
+    const aloam::sim::StairsOptions stairs;
+    if (end.x() > stairs.run() + stairs.top_landing_m - 0.5)
+    {
+      std::cerr << "warning: the trajectory reaches x = " << end.x() << " m, beyond the stairwell\n";
+    }
+    return aloam::sim::stairsScene(o.seed, stairs);
   }
   return aloam::sim::openFieldScene(o.seed, length);
 }
@@ -412,13 +518,21 @@ int run(const Options& o)
   {
     throw std::invalid_argument("--duration is shorter than one sweep");
   }
+  // Sweeps k = 0, N, 2N, ... are published (a throttled topic); the others are not even cast.
+  const std::vector<double> starts = aloam::sim::publishedSweepStarts(o.duration, period, o.keep_every);
+  const int published = static_cast<int>(starts.size());
 
   const auto build_start = std::chrono::steady_clock::now();
   const TrajectorySetup trajectory = makeTrajectory(o);
   const aloam::sim::Scene scene = makeScene(o, trajectory);
   const double build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - build_start).count();
   std::cerr << "aloam_sim: " << o.sensor << ", scene " << o.scene << " (" << scene.size() << " primitives, built in "
-            << build_seconds << " s), trajectory " << o.trajectory << ", " << sweeps << " sweeps\n";
+            << build_seconds << " s), trajectory " << o.trajectory << ", " << sweeps << " sweeps";
+  if (o.keep_every > 1)
+  {
+    std::cerr << ", every " << o.keep_every << "th published (" << published << ")";
+  }
+  std::cerr << "\n";
 
   fs::path kitti_dir;
   std::ofstream times;
@@ -439,9 +553,12 @@ int run(const Options& o)
   std::size_t total_points = 0;
   double scan_seconds = 0.0;
   const auto loop_start = std::chrono::steady_clock::now();
-  for (int k = 0; k < sweeps; ++k)
+  int written = 0;
+  double path_length = 0.0;
+  Eigen::Vector3d previous_position = trajectory.pose_at(0.0).translation();
+  for (const double start : starts)
   {
-    const double start = k * period;
+    const int k = static_cast<int>(std::lround(start / period));
     aloam::sim::ScanOptions scan_options;
     scan_options.range_noise_sigma = o.noise;
     scan_options.dropout_probability = o.dropout;
@@ -466,7 +583,7 @@ int run(const Options& o)
     }
     msg.header.stamp = sweep_stamp;
     msg.header.frame_id = frame;
-    msg.header.seq = static_cast<std::uint32_t>(k);
+    msg.header.seq = static_cast<std::uint32_t>(written);
     // Drivers publish a sweep once it is complete: record everything at the sweep end.
     bag.write(kCloudTopic, end_stamp, msg);
 
@@ -482,19 +599,23 @@ int run(const Options& o)
     bag.write(kTfTopic, end_stamp, tf);
 
     truth.push_back(first_end.inverse() * trajectory.pose_at(start + period));
+    const Eigen::Vector3d position = trajectory.pose_at(start + period).translation();
+    path_length += (position - previous_position).norm();
+    previous_position = position;
     if (!kitti_dir.empty())
     {
       char name[32];
-      std::snprintf(name, sizeof(name), "%06d.bin", k);
+      std::snprintf(name, sizeof(name), "%06d.bin", written);
       writeKittiScan(kitti_dir / "velodyne" / name, cloud);
       char line[64];
       std::snprintf(line, sizeof(line), "%.6e\n", start);
       times << line;
     }
-    if ((k + 1) % kProgressEvery == 0 || k + 1 == sweeps)
+    if ((written + 1) % kProgressEvery == 0 || written + 1 == published)
     {
-      std::cerr << "\r  sweep " << (k + 1) << "/" << sweeps << std::flush;
+      std::cerr << "\r  sweep " << (written + 1) << "/" << published << std::flush;
     }
+    ++written;
   }
   std::cerr << "\n";
   bag.close();
@@ -504,19 +625,19 @@ int run(const Options& o)
     aloam::eval::writeKittiPoses((kitti_dir / "poses.txt").string(), truth);
   }
   const double loop_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loop_start).count();
-  const Eigen::Isometry3d last = trajectory.pose_at(sweeps * period);
-  const Eigen::Isometry3d first = trajectory.pose_at(0.0);
   std::printf("aloam_sim summary\n");
   std::printf("  sensor %s (%d rings x %d columns, %.3f s), scene %s (%zu primitives), trajectory %s, seed %u\n",
               o.sensor.c_str(), sensor->numRings(), sensor->columns(), period, o.scene.c_str(), scene.size(),
               o.trajectory.c_str(), o.seed);
-  std::printf("  sweeps %d, points %zu (%.0f per sweep), path %.2f m, noise %.3f m, dropout %.3f\n", sweeps,
-              total_points, static_cast<double>(total_points) / sweeps,
-              (last.translation() - first.translation()).norm(), o.noise, o.dropout);
+  std::printf(
+      "  sweeps %d (every %d of %d), points %zu (%.0f per sweep), path %.2f m (polyline of the published poses), noise "
+      "%.3f m, dropout %.3f\n",
+      published, o.keep_every, sweeps, total_points, static_cast<double>(total_points) / published, path_length,
+      o.noise, o.dropout);
   std::printf("  bag %s (%.1f MB)%s%s\n", o.bag.c_str(), static_cast<double>(fs::file_size(o.bag)) / 1e6,
               kitti_dir.empty() ? "" : ", kitti ", kitti_dir.string().c_str());
-  std::printf("  ray casting %.2f sweeps/s (%.3f s), overall %.2f sweeps/s (%.3f s)\n", sweeps / scan_seconds,
-              scan_seconds, sweeps / loop_seconds, loop_seconds);
+  std::printf("  ray casting %.2f sweeps/s (%.3f s), overall %.2f sweeps/s (%.3f s)\n", published / scan_seconds,
+              scan_seconds, published / loop_seconds, loop_seconds);
   return 0;
 }
 }  // namespace

@@ -113,20 +113,22 @@ struct DeskewFigures
 
 // Runs odometry over distorted sweeps of the constant-twist drive: motion errors per sweep, and how far
 // the points handed on (frame.full, sweep-end frame) are from where they truly are at the sweep end.
-DeskewFigures distortedDrive(bool deskew)
+// `keep_every` > 1: only every so many sweeps reach odometry (a throttled topic), stamped accordingly.
+DeskewFigures distortedDrive(bool deskew, int keep_every = 1, bool time_scaling = true)
 {
   const SensorModel sensor = ts::preset("VLP16");
   const double period = sensor.scanPeriod();
   const double yaw_rate = kYawRateDegPerSecond * ts::kDegToRad;
   LaserOdometryConfig config;
   config.deskew = deskew;
+  config.time_scaling = time_scaling;
   LaserOdometry odometry(config);
   DeskewFigures fig;
   int compared = 0;
   std::size_t points = 0;
   for (int k = 0; k < kDistortedSweeps; ++k)
   {
-    const double start = k * period;
+    const double start = k * keep_every * period;
     const auto pose_at = [&](double t) { return drivePose(start + t, kSpeed, yaw_rate); };
     const Cloud cloud = ts::movingSweep(sensor, pose_at);
     const auto f = features(cloud, sensor, start + period, true);
@@ -138,7 +140,7 @@ DeskewFigures distortedDrive(bool deskew)
     EXPECT_EQ(frame.status, OdometryStatus::kOk) << "sweep " << k;
     // previous sweep end <- this sweep end
     const Eigen::Isometry3d end = pose_at(period);
-    const Pose truth = ts::toPose(pose_at(0.0).inverse() * end);
+    const Pose truth = ts::toPose(pose_at(period - keep_every * period).inverse() * end);
     if (k < kFirstComparedSweep)
     {
       continue;
@@ -270,6 +272,61 @@ TEST(LaserOdometryTest, DeskewUndistortsSweeps)
   EXPECT_LE(on.motion_translation, kMaxMotionTranslationError);
   EXPECT_LE(on.motion_rotation_deg, kMaxMotionRotationErrorDeg);
   EXPECT_LE(off.motion_translation, kMaxMotionTranslationError);
+}
+
+// Every second sweep of the same drive (5 Hz from a 10 Hz sensor, stamps 0.2 s apart): the sweep still
+// spans scan_period, so deskewing must use velocity x scan_period, not the whole 0.2 s motion. With the
+// time scaling the clouds are as well undistorted as at the full rate; without it (the A-LOAM model) they
+// are corrected twice too much.
+TEST(LaserOdometryTest, DeskewAtAThrottledRateUsesVelocityTimesScanPeriod)
+{
+  const DeskewFigures full_rate = distortedDrive(true);
+  const DeskewFigures scaled = distortedDrive(true, 2, true);
+  const DeskewFigures unscaled = distortedDrive(true, 2, false);
+  const DeskewFigures raw = distortedDrive(false, 2, true);
+  std::printf(
+      "[ measured ] every 2nd sweep: cloud error raw %.4f m, deskewed with velocity x period %.4f m, with the "
+      "whole motion %.4f m (full rate %.4f m); motion error %.4f m / %.4f m\n",
+      raw.cloud_error, scaled.cloud_error, unscaled.cloud_error, full_rate.cloud_error, scaled.motion_translation,
+      unscaled.motion_translation);
+  EXPECT_LT(scaled.cloud_error, kDeskewGainRequired * raw.cloud_error);
+  EXPECT_LT(scaled.cloud_error, 0.5 * unscaled.cloud_error);
+  EXPECT_LT(scaled.cloud_error, 2.0 * full_rate.cloud_error);
+  EXPECT_LE(scaled.motion_translation, unscaled.motion_translation + kDeskewMotionSlack);
+}
+
+// The prediction is a velocity: a sweep twice as far from the last stamp starts from twice the motion,
+// a sweep at the same spacing from the last motion itself (bit for bit), and without time scaling from
+// the last motion whatever the spacing.
+TEST(LaserOdometryTest, PredictionScalesWithTheTimeBetweenStamps)
+{
+  const SensorModel sensor = ts::preset("VLP16");
+  const double period = sensor.scanPeriod();
+  for (const bool time_scaling : { true, false })
+  {
+    LaserOdometryConfig config;
+    config.time_scaling = time_scaling;
+    LaserOdometry odometry(config);
+    OdometryFrame frame;
+    for (int k = 0; k < 3; ++k)
+    {
+      const double start = k * period;
+      const auto pose_at = [&](double t) { return drivePose(start + t, kSpeed, 0.2); };
+      frame = odometry.process(features(ts::movingSweep(sensor, pose_at), sensor, start + period, true));
+    }
+    ASSERT_EQ(frame.status, OdometryStatus::kOk);
+    ASSERT_GT(frame.motion.t.norm(), 0.5);
+    const double last = 3 * period;
+    const Pose same = odometry.prediction(last + period);
+    EXPECT_EQ(same.t, frame.motion.t);
+    EXPECT_EQ(same.q.coeffs(), frame.motion.q.coeffs());
+    const Pose twice = odometry.prediction(last + 2.0 * period);
+    const double factor = time_scaling ? 2.0 : 1.0;
+    EXPECT_NEAR((twice.t - factor * frame.motion.t).norm(), 0.0, kExactMetres) << "time_scaling " << time_scaling;
+    EXPECT_NEAR(twice.q.angularDistance(Eigen::Quaterniond::Identity()),
+                factor * frame.motion.q.angularDistance(Eigen::Quaterniond::Identity()), 1e-12);
+    EXPECT_NEAR(twice.q.angularDistance(time_scaling ? frame.motion.q * frame.motion.q : frame.motion.q), 0.0, 1e-12);
+  }
 }
 
 // An almost empty sweep after good ones: degraded, motion equal to the constant-velocity prior, pose finite.

@@ -10,6 +10,9 @@
 #include <gtest/gtest.h>
 
 #include "aloam_nodelet/core/pipeline.h"
+#include "aloam_nodelet/sim/raycaster.h"
+#include "aloam_nodelet/sim/scenes_extra.h"
+#include "aloam_nodelet/sim/trajectories.h"
 #include "test_support.h"
 
 namespace aloam
@@ -305,6 +308,66 @@ TEST(PipelineInputsTest, PipelinesShareNoState)
   // Both drives are tracked (the second is not disturbed by the first).
   const Pose truth_b = ts::toPose(otherDrivePose(0).inverse() * otherDrivePose(kSweeps - 1));
   EXPECT_LE(ts::translationError(alone_b.back().mapping.pose, truth_b), kMaxErrorAfterPoorSweep);
+}
+
+// A hand-held VLP-16 walk down the simulated corridor (3 s). Mapping finds one or two weak directions in
+// nearly every frame (measured: height coupled with pitch, and roll: the 16 beams see little floor and
+// ceiling), so with the all-or-nothing fallback every frame keeps the whole prediction and the estimate
+// is lost; remapping keeps the prediction only along the weak directions. Measured (seed 1): final error
+// with remapping 0.10 m (28 of 30 frames remapped), without 4.06 m (28 degraded).
+TEST(PipelineInputsTest, CorridorRemappingKeepsOnlyTheWeakDirection)
+{
+  const SensorModel sensor = ts::preset("VLP16");
+  const sim::Scene scene = sim::corridorScene(1);
+  const sim::PoseFunction walk = sim::handHeld(sim::HandHeldOptions());
+  constexpr int kCorridorSweeps = 30;
+  double final_error[2] = { 0.0, 0.0 };
+  std::size_t remapped[2] = { 0, 0 }, degraded[2] = { 0, 0 };
+  for (const bool remap : { false, true })
+  {
+    PipelineConfig config = pipelineConfig();
+    config.odometry.deskew = true;
+    config.odometry.degeneracy_remap = remap;
+    config.mapping.degeneracy_remap = remap;
+    Pipeline pipeline(config);
+    const Eigen::Isometry3d first_end = walk(kPeriod);
+    for (int k = 0; k < kCorridorSweeps; ++k)
+    {
+      const double start = k * kPeriod;
+      sim::ScanOptions options;
+      options.seed = static_cast<unsigned>(k + 1);
+      const Cloud cloud = sim::scan(
+          scene, sensor, [&](double t) { return walk(start + t); }, options);
+      const PipelineOutput out = pipeline.process(cloud, start + kPeriod, true, true);
+      ASSERT_EQ(out.status, PipelineStatus::kOk);
+      remapped[remap] += out.mapping.status == MappingStatus::kRemapped;
+      degraded[remap] += out.mapping.status == MappingStatus::kDegraded;
+      if (remap && out.mapping.status == MappingStatus::kRemapped)
+      {
+        // Reported directions: unit 6-vectors, weaker than min_constraint.
+        ASSERT_FALSE(out.mapping.degenerate.empty());
+        for (const DegenerateDirection& d : out.mapping.degenerate)
+        {
+          EXPECT_NEAR(d.rotation.squaredNorm() + d.translation.squaredNorm(), 1.0, 1e-9);
+          EXPECT_LT(d.eigenvalue, config.mapping.min_constraint);
+        }
+        if (k % 10 == 5)
+        {
+          std::printf("[ measured ] corridor sweep %d: mapping degenerate along %s\n", k,
+                      describe(out.mapping.degenerate).c_str());
+        }
+      }
+      const Pose truth = ts::toPose(first_end.inverse() * walk(start + kPeriod));
+      final_error[remap] = ts::translationError(out.mapping.pose, truth);
+    }
+  }
+  std::printf("[ measured ] corridor walk: final error remap off %.3f m (%zu degraded), on %.3f m (%zu remapped)\n",
+              final_error[0], degraded[0], final_error[1], remapped[1]);
+  EXPECT_GT(degraded[0], kCorridorSweeps / 2u);
+  EXPECT_GT(remapped[1], kCorridorSweeps / 2u);
+  EXPECT_EQ(degraded[1], 0u);
+  EXPECT_LT(final_error[1], 0.15);
+  EXPECT_LT(final_error[1], 0.5 * final_error[0]);
 }
 
 }  // namespace aloam

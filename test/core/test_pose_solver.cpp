@@ -1,6 +1,8 @@
 // PoseProblem: the solve recovers a known pose, the constraint strength is the one Ceres's own Jacobian
 // gives, and threads do not change the result.
+#include <cmath>
 #include <random>
+#include <string>
 #include <vector>
 
 #include <Eigen/Eigenvalues>
@@ -194,6 +196,148 @@ TEST(PoseSolver, ThreadsDoNotChangeTheSolution)
   }
   EXPECT_EQ(solutions[0].t, solutions[1].t);
   EXPECT_EQ(solutions[0].q.coeffs(), solutions[1].q.coeffs());
+}
+
+// A corridor along the world x axis (walls 4 m apart, floor and ceiling 3 m apart) seen from `truth`: the
+// planes pin down everything but the translation along x. `weak_planes` planes across the corridor add a
+// weak x constraint that disagrees with the truth by `weak_bias` metres (as a far door frame matched to
+// the wrong side would); their points lie on the x axis of the sensor, so they constrain no rotation.
+MatchSlots corridorMatches(const Pose& truth, int planes_per_side, int weak_planes, double weak_bias, std::mt19937& rng)
+{
+  std::uniform_real_distribution<double> along(-15.0, 15.0), across(-2.0, 2.0), height(-1.2, 1.8);
+  MatchSlots slots;
+  slots.resize(0, 4 * planes_per_side + weak_planes);
+  int k = 0;
+  const auto add = [&](const Eigen::Vector3d& world, const Eigen::Vector3d& normal, double bias)
+  {
+    slots.planes[k] = PlaneMatch{ truth.inverse() * world, normal, -normal.dot(world) + bias };
+    slots.plane_found[k] = 1;
+    ++k;
+  };
+  for (int i = 0; i < planes_per_side; ++i)
+  {
+    const Eigen::Vector3d o = truth.t;
+    add(o + Eigen::Vector3d(along(rng), 2.0, height(rng)), Eigen::Vector3d::UnitY(), 0.0);
+    add(o + Eigen::Vector3d(along(rng), -2.0, height(rng)), -Eigen::Vector3d::UnitY(), 0.0);
+    add(o + Eigen::Vector3d(along(rng), across(rng), -1.2), Eigen::Vector3d::UnitZ(), 0.0);
+    add(o + Eigen::Vector3d(along(rng), across(rng), 1.8), -Eigen::Vector3d::UnitZ(), 0.0);
+  }
+  for (int i = 0; i < weak_planes; ++i)
+  {
+    add(truth.t + Eigen::Vector3d(along(rng), 0.0, 0.0), Eigen::Vector3d::UnitX(), weak_bias);
+  }
+  return slots;
+}
+
+// matchAndSolve over fixed matches (the same slots at every search).
+MatchSolveResult solveFixed(const MatchSlots& slots, bool remap, double min_constraint, Pose& pose)
+{
+  MatchSolveOptions options;
+  options.outer_iterations = 2;
+  options.max_iterations = 10;
+  options.min_constraint = min_constraint;
+  options.remap = remap;
+  return matchAndSolve(
+      pose, slots.lines.size(), slots.planes.size(), options,
+      [&](int i, const Pose&, LineMatch& m)
+      {
+        m = slots.lines[i];
+        return slots.line_found[i] != 0;
+      },
+      [&](int i, const Pose&, PlaneMatch& m)
+      {
+        m = slots.planes[i];
+        return slots.plane_found[i] != 0;
+      });
+}
+
+// Solution remapping in a corridor: the translation along the corridor is degenerate (3 weak planes,
+// eigenvalue 3 against a threshold of 10) and stays exactly at the prior, while the other five directions
+// are solved as without remapping; without remapping the weak, biased planes drag x off the prior.
+TEST(PoseSolver, RemappingKeepsThePriorAlongTheUnconstrainedDirection)
+{
+  std::mt19937 rng(5);
+  const Pose truth(Eigen::Quaterniond(Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.1, 0.2, 1.0).normalized())),
+                   Eigen::Vector3d(4.0, -0.5, 0.3));
+  const MatchSlots slots = corridorMatches(truth, 300, 3, 0.4, rng);
+  const Pose prior = perturbed(truth, 0.02, 0.2);
+  constexpr double kMinConstraint = 10.0;
+
+  Pose remapped = prior;
+  const MatchSolveResult on = solveFixed(slots, true, kMinConstraint, remapped);
+  Pose plain = prior;
+  const MatchSolveResult off = solveFixed(slots, false, kMinConstraint, plain);
+
+  // Along x: the prior exactly with remapping, the biased weak planes without.
+  EXPECT_NEAR(remapped.t.x(), prior.t.x(), 1e-9);
+  EXPECT_GT(std::fabs(plain.t.x() - prior.t.x()), 0.1);
+  // The other directions: solved, and alike with and without remapping.
+  EXPECT_NEAR(remapped.t.y(), truth.t.y(), 1e-6);
+  EXPECT_NEAR(remapped.t.z(), truth.t.z(), 1e-6);
+  EXPECT_LT(angleBetween(remapped, truth), 1e-7);
+  EXPECT_NEAR(plain.t.y(), truth.t.y(), 1e-6);
+  EXPECT_LT(angleBetween(plain, truth), 1e-7);
+  EXPECT_GT(std::fabs(prior.t.y() - truth.t.y()), 0.1);  // so that solving y is a change
+
+  // Reported: one degenerate direction, the world x axis expressed in the sensor frame, "remapped".
+  EXPECT_TRUE(on.remapped);
+  EXPECT_FALSE(off.remapped);
+  ASSERT_EQ(on.degenerate.size(), 1u);
+  ASSERT_EQ(off.degenerate.size(), 1u);
+  EXPECT_LT(on.constraint, kMinConstraint);
+  const DegenerateDirection& d = on.degenerate[0];
+  const Eigen::Vector3d x_in_sensor = truth.q.conjugate() * Eigen::Vector3d::UnitX();
+  EXPECT_NEAR(std::fabs(d.translation.dot(x_in_sensor)), 1.0, 1e-6);
+  EXPECT_NEAR(d.rotation.norm(), 0.0, 1e-6);
+  EXPECT_NEAR(d.eigenvalue, 3.0, 1e-6);
+  EXPECT_EQ(describe(d).rfind("translation along (", 0), 0u) << describe(d);
+  EXPECT_EQ(describe(d).find("rotation"), std::string::npos) << describe(d);
+}
+
+// Nothing degenerate: remapping changes nothing, bit for bit.
+TEST(PoseSolver, RemappingEqualsThePlainSolveWhenNothingIsDegenerate)
+{
+  std::mt19937 rng(6);
+  const Pose truth(Eigen::Quaterniond(Eigen::AngleAxisd(0.4, Eigen::Vector3d::UnitZ())),
+                   Eigen::Vector3d(3.0, -1.0, 0.2));
+  const MatchSlots slots = exactMatches(truth, 100, 300, 0.05, rng);
+  Pose remapped = perturbed(truth, 0.03, 0.3), plain = remapped;
+  const MatchSolveResult on = solveFixed(slots, true, 10.0, remapped);
+  const MatchSolveResult off = solveFixed(slots, false, 10.0, plain);
+  EXPECT_GT(on.constraint, 10.0);
+  EXPECT_TRUE(on.degenerate.empty());
+  EXPECT_FALSE(on.remapped);
+  EXPECT_EQ(on.constraint, off.constraint);
+  EXPECT_EQ(remapped.t, plain.t);
+  EXPECT_EQ(remapped.q.coeffs(), plain.q.coeffs());
+  EXPECT_LT((remapped.t - truth.t).norm(), 0.02);
+}
+
+// Every direction degenerate (no matches constrain anything strongly): the pose stays at the prior.
+TEST(PoseSolver, RemappingWithEveryDirectionDegenerateKeepsThePrior)
+{
+  std::mt19937 rng(7);
+  const Pose truth;
+  const MatchSlots slots = exactMatches(truth, 5, 10, 0.0, rng);
+  const Pose prior = perturbed(truth, 0.02, 0.2);
+  Pose pose = prior;
+  const MatchSolveResult r = solveFixed(slots, true, 1e9, pose);
+  EXPECT_EQ(r.degenerate.size(), 6u);
+  EXPECT_FALSE(r.remapped);
+  EXPECT_NEAR((pose.t - prior.t).norm(), 0.0, 1e-12);
+  EXPECT_NEAR(angleBetween(pose, prior), 0.0, 1e-12);
+}
+
+TEST(PoseSolver, DescribesDirections)
+{
+  DegenerateDirection along_x;
+  along_x.translation = Eigen::Vector3d(0.99, 0.01, 0.0);
+  EXPECT_EQ(describe(along_x), "translation along (1.00, 0.01, 0.00)");
+  DegenerateDirection yaw;
+  yaw.rotation = Eigen::Vector3d(0.0, 0.0, 0.9);
+  yaw.translation = Eigen::Vector3d(0.0, 0.4, 0.0);
+  EXPECT_EQ(describe(yaw), "rotation about (0.00, 0.00, 1.00) with translation along (0.00, 1.00, 0.00)");
+  EXPECT_EQ(describe(std::vector<DegenerateDirection>{}), "none");
 }
 
 }  // namespace

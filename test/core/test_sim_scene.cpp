@@ -3,6 +3,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 #include <random>
 #include <string>
 #include <vector>
@@ -12,6 +13,7 @@
 #include "aloam_nodelet/core/sensor_model.h"
 #include "aloam_nodelet/sim/raycaster.h"
 #include "aloam_nodelet/sim/scene.h"
+#include "aloam_nodelet/sim/scenes_extra.h"
 
 namespace aloam
 {
@@ -491,6 +493,186 @@ TEST(SimRaycaster, PerformanceSmoke)
     std::printf("[ perf     ] %s on urbanStreet: %.1f sweeps/s (%.2f ms/sweep, %.0f points/sweep)\n", name.c_str(),
                 sweeps / seconds, 1e3 * seconds / sweeps, static_cast<double>(points) / sweeps);
     EXPECT_GT(points, 0u);
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Extra scenes: the L-shaped office corridor, the tunnel, the stairwell
+
+namespace
+{
+constexpr double kNicheDepthM = 0.6;  // corridor niches (scenes_extra.cpp)
+
+/// Distance to the first surface along `direction` (NaN when nothing is hit within 200 m).
+double distanceAlong(const Scene& scene, const Eigen::Vector3d& from, const Eigen::Vector3d& direction)
+{
+  const std::optional<Hit> hit = scene.intersect(from, direction, 200.0);
+  return hit ? hit->distance : std::numeric_limits<double>::quiet_NaN();
+}
+}  // namespace
+
+TEST(SimExtraScenes, OfficeWallsAtTheCorridorWidthAndAnLTurn)
+{
+  const OfficeOptions o;
+  const double half_width = 0.5 * o.width_m;
+  const double eye = 1.5;
+  const double inner_x = o.first_length_m - o.width_m;
+  std::vector<std::vector<double>> profiles;
+  int cabinets_seen = 0;
+  for (const unsigned seed : { 1U, 2U, 3U })
+  {
+    const Scene scene = officeScene(seed, o);
+    std::vector<double> profile;
+    int plain = 0;
+    int samples = 0;
+    // First corridor, up to the inner corner: walls at the half width (nearer at a cabinet, farther at a door or a
+    // niche), no opening sideways, floor and ceiling, and the corner's far wall ahead.
+    for (double x = 1.0; x < inner_x - 0.5; x += 0.25)
+    {
+      const Eigen::Vector3d p(x, 0.0, eye);
+      for (const double side : { -1.0, 1.0 })
+      {
+        const double d = distanceAlong(scene, p, Eigen::Vector3d(0.0, side, 0.0));
+        ASSERT_FALSE(std::isnan(d)) << "seed " << seed << " x " << x;
+        EXPECT_GE(d, half_width - o.clutter_depth_max_m - 1e-9) << "seed " << seed << " x " << x;
+        EXPECT_LE(d, half_width + kNicheDepthM + 1e-9) << "seed " << seed << " x " << x;
+        plain += std::abs(d - half_width) < 1e-6 ? 1 : 0;
+        cabinets_seen += d < half_width - 0.2 ? 1 : 0;
+        ++samples;
+        profile.push_back(d);
+      }
+      EXPECT_NEAR(distanceAlong(scene, p, -Eigen::Vector3d::UnitZ()), eye, 1e-9);
+      const double up = distanceAlong(scene, p, Eigen::Vector3d::UnitZ());
+      EXPECT_LE(up, o.height_m - eye + 1e-9);
+      EXPECT_GE(up, o.height_m - eye - 0.1 - 1e-9);  // a ceiling light at most
+      EXPECT_NEAR(distanceAlong(scene, p, Eigen::Vector3d::UnitX()), o.first_length_m - x, kNicheDepthM + 1e-9);
+    }
+    EXPECT_GT(plain, samples / 2) << "seed " << seed;
+    EXPECT_LT(plain, samples) << "seed " << seed;  // some doors, niches or cabinets
+    profiles.push_back(profile);
+
+    // The L: from the corner the second corridor is open all the way to its end wall, and the start wall
+    // is straight back.
+    const Eigen::Vector3d corner(o.turnCenterX(), 0.0, eye);
+    EXPECT_NEAR(distanceAlong(scene, corner, Eigen::Vector3d::UnitY()), o.secondEndY(), 1e-6);
+    EXPECT_NEAR(distanceAlong(scene, corner, -Eigen::Vector3d::UnitX()), o.turnCenterX(), 1e-6);
+    // Second corridor: walls at the half width on both sides of its centerline.
+    for (double y = half_width + 0.5; y < o.secondEndY() - 0.5; y += 0.25)
+    {
+      const Eigen::Vector3d p(o.turnCenterX(), y, eye);
+      for (const double side : { -1.0, 1.0 })
+      {
+        const double d = distanceAlong(scene, p, Eigen::Vector3d(side, 0.0, 0.0));
+        ASSERT_FALSE(std::isnan(d)) << "seed " << seed << " y " << y;
+        EXPECT_GE(d, half_width - o.clutter_depth_max_m - 1e-9) << "seed " << seed << " y " << y;
+        EXPECT_LE(d, half_width + kNicheDepthM + 1e-9) << "seed " << seed << " y " << y;
+      }
+      EXPECT_NEAR(distanceAlong(scene, p, -Eigen::Vector3d::UnitZ()), eye, 1e-9);
+    }
+  }
+  EXPECT_GT(cabinets_seen, 0);
+  EXPECT_NE(profiles[0], profiles[1]);
+  EXPECT_NE(profiles[1], profiles[2]);
+  EXPECT_THROW(officeScene(1,
+                           []
+                           {
+                             OfficeOptions bad;
+                             bad.width_m = 0.8;
+                             return bad;
+                           }()),
+               std::invalid_argument);
+}
+
+TEST(SimExtraScenes, TunnelSectionAndSparseFeatures)
+{
+  TunnelOptions o;
+  o.length_m = 200.0;
+  const double half_width = 0.5 * o.width_m;
+  const double eye = 1.8;
+  const double light_z = o.wall_height_m - 0.4;
+  for (const unsigned seed : { 1U, 2U })
+  {
+    const Scene scene = tunnelScene(seed, o);
+    int plain = 0;
+    int samples = 0;
+    int features = 0;
+    double last_feature_x = -1e9;
+    for (double x = 0.0; x < o.length_m; x += 0.1)
+    {
+      bool feature_here = false;
+      for (const double z : { eye, light_z })
+      {
+        const Eigen::Vector3d p(x, 0.0, z);
+        for (const double side : { -1.0, 1.0 })
+        {
+          const double d = distanceAlong(scene, p, Eigen::Vector3d(0.0, side, 0.0));
+          ASSERT_FALSE(std::isnan(d)) << "seed " << seed << " x " << x;
+          EXPECT_GE(d, half_width - 0.25) << "seed " << seed << " x " << x;  // a light or a standpipe
+          EXPECT_LE(d, half_width + o.niche_depth_m + 1e-9) << "seed " << seed << " x " << x;
+          const bool is_plain = std::abs(d - half_width) < 1e-6;
+          plain += is_plain ? 1 : 0;
+          feature_here = feature_here || !is_plain;
+          ++samples;
+        }
+      }
+      if (feature_here && x - last_feature_x > 2.5)
+      {
+        ++features;
+      }
+      if (feature_here)
+      {
+        last_feature_x = x;
+      }
+      // Floor below, crown above, and the arch (a polygon inscribed in the circle of radius half_width centered
+      // on the wall tops) at 45 degrees.
+      const Eigen::Vector3d p(x, 0.0, eye);
+      EXPECT_NEAR(distanceAlong(scene, p, -Eigen::Vector3d::UnitZ()), eye, 1e-9);
+      EXPECT_NEAR(distanceAlong(scene, p, Eigen::Vector3d::UnitZ()), o.crownHeight() - eye, 1e-6);
+      for (const double side : { -1.0, 1.0 })
+      {
+        const double d = distanceAlong(scene, Eigen::Vector3d(x, 0.0, o.wall_height_m),
+                                       Eigen::Vector3d(0.0, side * M_SQRT1_2, M_SQRT1_2));
+        EXPECT_LE(d, half_width + 1e-6);
+        EXPECT_GE(d, half_width * std::cos(M_PI / (4.0 * o.arch_chords)) - 1e-6);
+      }
+    }
+    // Sparse: the walls are plain almost everywhere, with a feature every 10-20 m.
+    EXPECT_GT(plain, 0.85 * samples) << "seed " << seed;
+    EXPECT_GE(features, static_cast<int>(o.length_m / o.feature_spacing_max_m) - 1) << "seed " << seed;
+    EXPECT_LE(features, static_cast<int>(o.length_m / o.feature_spacing_min_m) + 1) << "seed " << seed;
+  }
+}
+
+TEST(SimExtraScenes, StairsTreadsRisersAndLandings)
+{
+  const StairsOptions o;
+  const double half_width = 0.5 * o.width_m;
+  const Scene scene = stairsScene(3, o);
+  const double above = 5.5;
+  const auto floor_below = [&](double x)
+  { return above - distanceAlong(scene, Eigen::Vector3d(x, 0.0, above), -Eigen::Vector3d::UnitZ()); };
+  EXPECT_NEAR(floor_below(-2.0), 0.0, 1e-9);
+  for (int i = 0; i + 1 < o.risers; ++i)
+  {
+    EXPECT_NEAR(floor_below((i + 0.5) * o.tread_m), (i + 1) * o.rise_m, 1e-9) << "tread " << i;
+    // Riser i faces the climber: a horizontal ray just above the previous tread hits it.
+    const double z = i * o.rise_m + 0.05;
+    EXPECT_NEAR(distanceAlong(scene, Eigen::Vector3d(i * o.tread_m - 0.1, 0.0, z), Eigen::Vector3d::UnitX()), 0.1, 1e-9)
+        << "riser " << i;
+  }
+  EXPECT_NEAR(floor_below(o.run() + 2.0), o.totalRise(), 1e-9);
+  EXPECT_GT(o.totalRise(), 2.9);
+  EXPECT_LT(o.run(), 5.0);
+  // The stairwell's walls.
+  for (double x = -3.0; x < o.run() + 4.0; x += 0.5)
+  {
+    const double z = floor_below(x) + 1.5;
+    for (const double side : { -1.0, 1.0 })
+    {
+      const double d = distanceAlong(scene, Eigen::Vector3d(x, 0.0, z), Eigen::Vector3d(0.0, side, 0.0));
+      EXPECT_LE(d, half_width + 1e-9) << "x " << x;
+      EXPECT_GE(d, half_width - 0.5) << "x " << x;  // a cabinet at most
+    }
   }
 }
 

@@ -2,6 +2,7 @@
 // the street and on the hill, determinism of the simulated sweeps.
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -264,4 +265,167 @@ TEST(Scenes, SameSeedGivesIdenticalSweeps)
   const auto walk_at = [&](double t) { return walk(3.9 + t); };
   EXPECT_TRUE(sameCloud(aloam::sim::scan(corridor_a, *sensor, walk_at, options),
                         aloam::sim::scan(corridor_b, *sensor, walk_at, options)));
+}
+
+TEST(Trajectories, BurstsReach120DegPerSecondAndStopsStandStill)
+{
+  const aloam::sim::HandHeldOptions options = aloam::sim::handHeldBurstsOptions();
+  const aloam::sim::PoseFunction pose_at = aloam::sim::handHeld(options);
+  const double horizon = 20.0;
+  double peak = 0.0;
+  for (double t = 0.0; t < horizon; t += kStep)
+  {
+    const Eigen::Vector3d heading_a = pose_at(t).linear().col(0);
+    const Eigen::Vector3d heading_b = pose_at(t + kStep).linear().col(0);
+    peak = std::max(
+        peak, std::abs(std::atan2(heading_b.y(), heading_b.x()) - std::atan2(heading_a.y(), heading_a.x())) / kStep);
+    // The analytic speed agrees with the motion.
+    const double moved = (pose_at(t + kStep).translation().x() - pose_at(t - kStep).translation().x()) / (2.0 * kStep);
+    EXPECT_NEAR(aloam::sim::handHeldSpeed(options, t), moved, 1e-3) << "t = " << t;
+  }
+  EXPECT_NEAR(peak, 120.0 * kPi / 180.0, 0.05 * 120.0 * kPi / 180.0);
+
+  int stops = 0;
+  for (double start = options.first_stop_s; start + options.stop_still_s + 2.0 * options.stop_edge_s < horizon;
+       start += options.stop_interval_s, ++stops)
+  {
+    const double still_from = start + options.stop_edge_s;
+    const double still_to = still_from + options.stop_still_s;
+    const Eigen::Isometry3d standing = pose_at(still_from);
+    for (double t = still_from; t <= still_to; t += 0.01)
+    {
+      // Completely still: no translation (no bobbing either) and no rotation.
+      EXPECT_LT((pose_at(t).translation() - standing.translation()).norm(), 1e-9) << "t = " << t;
+      EXPECT_LT(rotationAngle(pose_at(t), standing), 1e-9) << "t = " << t;
+      EXPECT_EQ(aloam::sim::handHeldSpeed(options, t), 0.0) << "t = " << t;
+    }
+    // Walking at full speed before and after.
+    for (const double t : { start - 0.2, still_to + options.stop_edge_s + 0.2 })
+    {
+      const double v = (pose_at(t + kStep).translation().x() - pose_at(t - kStep).translation().x()) / (2.0 * kStep);
+      EXPECT_NEAR(v, options.speed, 1e-6) << "t = " << t;
+    }
+  }
+  EXPECT_GE(stops, 2);
+  // Each stop costs the distance of (edge + still) seconds of walking.
+  const double lost = options.stop_edge_s + options.stop_still_s;
+  const double t_after = options.first_stop_s + options.stop_interval_s - 0.5;
+  EXPECT_NEAR(aloam::sim::handHeldDistance(options, t_after), options.speed * (t_after - lost), 1e-9);
+  // Without stops the walk is unchanged.
+  EXPECT_DOUBLE_EQ(aloam::sim::handHeldDistance(aloam::sim::HandHeldOptions(), 7.0), 1.4 * 7.0);
+  const Derivatives walk = measure(pose_at);
+  EXPECT_LT(walk.max_speed, options.speed + 0.2);
+  EXPECT_LT(walk.max_acceleration, 11.0);  // bobbing 4.7 m/s^2 plus braking 1.4 m/s in 0.4 s (raised cosine)
+}
+
+TEST(Trajectories, OfficeTurnWalkTurnsTheCornerInsideTheL)
+{
+  const aloam::sim::OfficeOptions office;
+  const aloam::sim::TurnWalkOptions walk = aloam::sim::officeTurnWalk(office);
+  const aloam::sim::PoseFunction pose_at = aloam::sim::handHeldTurn(walk);
+  const double half_width = 0.5 * office.width_m;
+  const Eigen::Vector2d turn = aloam::sim::turnDisplacement(walk.turn_angle_rad, walk.turn_length_m);
+  EXPECT_NEAR(turn.x(), turn.y(), 1e-6);  // the smoothstep turn is symmetric
+  EXPECT_GT(turn.x(), 0.5 * walk.turn_length_m);
+  EXPECT_NEAR(pose_at(0.0).translation().head<2>().norm(), walk.start_xy.norm(), 1e-9);
+
+  const double turn_begin = walk.turn_start_m / walk.speed;
+  const double turn_end = (walk.turn_start_m + walk.turn_length_m) / walk.speed;
+  EXPECT_GT(turn_begin, 5.0);  // a walk along the first corridor first
+  // Before the turn: on the first centerline heading +x; after it: on the second centerline heading +y.
+  for (double t = 0.0; t < turn_begin; t += 0.1)
+  {
+    EXPECT_NEAR(pose_at(t).translation().y(), 0.0, 1e-9);
+  }
+  const double end = (office.secondEndY() - 1.0 - turn.y()) / walk.speed + turn_end;
+  for (double t = turn_end; t < end; t += 0.1)
+  {
+    const Eigen::Isometry3d pose = pose_at(t);
+    EXPECT_NEAR(pose.translation().x(), office.turnCenterX(), 1e-4) << "t = " << t;
+    const Eigen::Vector3d forward = pose.linear().col(0);
+    EXPECT_NEAR(std::atan2(forward.y(), forward.x()), 0.5 * kPi, walk.yaw_sway_rad + 0.01) << "t = " << t;
+  }
+  EXPECT_NEAR(aloam::sim::turnWalkHeading(walk, 1e3) - aloam::sim::turnWalkHeading(walk, 0.0), 0.5 * kPi, 1e-12);
+
+  // The walker stays clear of the walls, doors and cabinets all the way (the scene's clutter and openings
+  // depend on the seed, the path does not).
+  for (const unsigned seed : { 1U, 2U, 3U })
+  {
+    const aloam::sim::Scene scene = aloam::sim::officeScene(seed, office);
+    double clearance = 1e9;
+    for (double t = 0.0; t < end; t += 0.05)
+    {
+      const Eigen::Vector3d p = pose_at(t).translation();
+      for (int k = 0; k < 16; ++k)
+      {
+        const double a = 2.0 * kPi * k / 16;
+        const auto hit = scene.intersect(p, Eigen::Vector3d(std::cos(a), std::sin(a), 0.0), 5.0);
+        if (hit)
+        {
+          clearance = std::min(clearance, hit->distance);
+        }
+      }
+    }
+    EXPECT_GT(clearance, 0.6) << "seed " << seed;
+    EXPECT_LT(clearance, half_width) << "seed " << seed;
+  }
+  const Derivatives d = measure(pose_at);
+  EXPECT_LT(d.max_speed, walk.speed + 0.4);    // bobbing adds a little vertical speed
+  EXPECT_GT(d.max_rate, 60.0 * kPi / 180.0);   // the corner is turned briskly ...
+  EXPECT_LT(d.max_rate, 100.0 * kPi / 180.0);  // ... but like a person
+}
+
+TEST(Trajectories, StairsWalkClimbsTheFlight)
+{
+  const aloam::sim::StairsOptions stairs;
+  const aloam::sim::HandHeldOptions options = aloam::sim::stairsWalkOptions(stairs);
+  const aloam::sim::PoseFunction pose_at = aloam::sim::handHeld(options);
+  const aloam::sim::Scene scene = aloam::sim::stairsScene(kSeed, stairs);
+  const double duration = 15.0;
+  const Eigen::Vector3d first = pose_at(0.0).translation();
+  const Eigen::Vector3d last = pose_at(duration).translation();
+  EXPECT_LT(first.x(), -1.0);                                      // starts on the bottom landing
+  EXPECT_GT(last.x(), stairs.run() + 0.5);                         // ends on the top landing
+  EXPECT_LT(last.x(), stairs.run() + stairs.top_landing_m - 1.0);  // short of its end wall
+  EXPECT_NEAR(last.z() - first.z(), stairs.totalRise(), 2.0 * options.bob_amplitude_m);
+  double previous_z = first.z();
+  double x_low = 0.0;   // where 10 % of the climb is done
+  double x_high = 0.0;  // where 90 % is done
+  for (double t = 0.0; t <= duration; t += 0.05)
+  {
+    const Eigen::Vector3d p = pose_at(t).translation();
+    const auto down = scene.intersect(p, -Eigen::Vector3d::UnitZ(), 5.0);
+    ASSERT_TRUE(down.has_value()) << "t = " << t;
+    EXPECT_EQ(down->surface_class, aloam::sim::SurfaceClass::Ground) << "t = " << t;
+    EXPECT_GT(down->distance, 1.2) << "t = " << t;
+    EXPECT_LT(down->distance, 1.8) << "t = " << t;
+    EXPECT_GT(p.z(), previous_z - 2.0 * options.bob_amplitude_m) << "t = " << t;  // never down the stairs
+    previous_z = std::max(previous_z, p.z());
+    const double climbed = (p.z() - first.z()) / stairs.totalRise();
+    x_low = climbed < 0.1 ? p.x() : x_low;
+    x_high = climbed < 0.9 ? p.x() : x_high;
+  }
+  // About 3 m up over a few metres: the flight's run (4.5 m) at its mean grade.
+  EXPECT_LT(x_high - x_low, stairs.run());
+  EXPECT_GT(x_high - x_low, 0.6 * stairs.run());
+}
+
+TEST(Trajectories, PublishedSweepStartsOfAThrottledTopic)
+{
+  const double period = 0.1;
+  for (const int keep_every : { 1, 2, 5 })
+  {
+    const std::vector<double> starts = aloam::sim::publishedSweepStarts(8.0, period, keep_every);
+    ASSERT_EQ(starts.size(), static_cast<std::size_t>((80 + keep_every - 1) / keep_every)) << keep_every;
+    EXPECT_EQ(starts.front(), 0.0);
+    for (std::size_t i = 1; i < starts.size(); ++i)
+    {
+      EXPECT_NEAR(starts[i] - starts[i - 1], keep_every * period, 1e-12);
+    }
+    EXPECT_LE(starts.back() + period, 8.0 + 1e-9);
+  }
+  EXPECT_EQ(aloam::sim::publishedSweepStarts(0.05, period, 1).size(), 0U);
+  EXPECT_EQ(aloam::sim::publishedSweepStarts(0.75, period, 2).size(), 4U);  // sweeps 0, 2, 4, 6
+  EXPECT_THROW(aloam::sim::publishedSweepStarts(8.0, period, 0), std::invalid_argument);
+  EXPECT_THROW(aloam::sim::publishedSweepStarts(8.0, 0.0, 1), std::invalid_argument);
 }

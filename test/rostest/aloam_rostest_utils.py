@@ -678,11 +678,13 @@ def answered_matrices(answers):
 # Simulated sequences (aloam_sim) played into a running pipeline
 
 
-def simulate(directory, name, sensor, scene, trajectory, duration, seed):
-    """Runs aloam_sim into DIRECTORY/NAME.bag; returns the bag path. Seeded, so every run is the same."""
+def simulate(directory, name, sensor, scene, trajectory, duration, seed, keep_every=1):
+    """Runs aloam_sim into DIRECTORY/NAME.bag; returns the bag path. Seeded, so every run is the same.
+    keep_every > 1 publishes only every N-th sweep (a throttled topic, stamps N sweep periods apart)."""
     bag = os.path.join(directory, name + ".bag")
     proc = subprocess.run([devel_tool("aloam_sim"), "--sensor", sensor, "--scene", scene, "--trajectory", trajectory,
-                           "--duration", str(duration), "--seed", str(seed), "--bag", bag],
+                           "--duration", str(duration), "--seed", str(seed), "--keep-every", str(int(keep_every)),
+                           "--bag", bag],
                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, universal_newlines=True, timeout=300)
     if proc.returncode != 0:
         raise AssertionError("aloam_sim failed (%d):\n%s" % (proc.returncode, proc.stdout))
@@ -721,9 +723,11 @@ def path_length(matrices):
 class DiagnosticsWatcher:
     """Keeps the newest /diagnostics status of each name as {key: value}, with its level and message."""
 
-    def __init__(self):
+    def __init__(self, history_keys=()):
         self._lock = threading.Lock()
         self.latest = {}
+        self.history_keys = tuple(history_keys)
+        self.history = {}  # (status name, key) -> every value seen, in arrival order (history_keys only)
         self.sub = rospy.Subscriber("/diagnostics", DiagnosticArray, self._cb, queue_size=100)
 
     def _cb(self, msg):
@@ -731,6 +735,15 @@ class DiagnosticsWatcher:
             for st in msg.status:
                 values = {kv.key: kv.value for kv in st.values}
                 self.latest[st.name] = (st.level, st.message, values)
+                for key in self.history_keys:
+                    if key in values:
+                        self.history.setdefault((st.name, key), []).append(values[key])
+
+    def values_seen(self, fragment, key):
+        """Every value of KEY seen in the statuses whose name ends with FRAGMENT (history_keys only)."""
+        with self._lock:
+            return [v for (name, k), seen in self.history.items() if name.endswith(fragment) and k == key
+                    for v in seen]
 
     def find(self, fragment):
         """(level, message, values) of the newest status whose name ends with FRAGMENT, else None."""

@@ -45,8 +45,13 @@ struct LaserMappingConfig
   int min_correspondences = 20;        ///< fewer matches: keep the prediction, report degraded
   double min_constraint = 25.0;        ///< weaker constraint (see LaserOdometryConfig): keep the prediction
   double constraint_lever_arm = 10.0;  ///< metres; see PoseProblem::constraintStrength
-  double eviction_radius = 1000.0;     ///< cubes farther than this from the robot are dropped (m); <= 0 keeps all
-  int threads = 2;                     ///< threads sharing the correspondence search (results do not depend on it)
+  /// Degeneracy per direction (see LaserOdometryConfig::degeneracy_remap): the prediction is kept only
+  /// along the directions weaker than min_constraint. false: any weak direction keeps the whole prediction.
+  bool degeneracy_remap = true;
+  /// More degenerate directions than this: the whole prediction is kept (see MatchSolveOptions::max_degenerate).
+  int max_degenerate_directions = 3;
+  double eviction_radius = 1000.0;  ///< cubes farther than this from the robot are dropped (m); <= 0 keeps all
+  int threads = 2;                  ///< threads sharing the correspondence search (results do not depend on it)
 };
 
 enum class MappingStatus
@@ -54,6 +59,7 @@ enum class MappingStatus
   kOk,
   kMapTooSmall,  ///< the map near the robot has too few points (start-up): prediction used
   kDegraded,     ///< too few correspondences or a divergent solve: prediction used
+  kRemapped,     ///< some directions degenerate: prediction kept along them, the solve along the others
 };
 
 struct MappingResult
@@ -65,6 +71,8 @@ struct MappingResult
   int corner_matches = 0;
   int plane_matches = 0;
   double constraint = 0.0;  ///< how well the matches pin the pose down (0: degenerate)
+  /// Directions the matches did not pin down, in the sensor frame (see OdometryFrame::degenerate).
+  std::vector<DegenerateDirection> degenerate;
   std::size_t map_corners = 0;
   std::size_t map_surfs = 0;
   std::size_t cubes = 0;
@@ -122,7 +130,7 @@ private:
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
   };
 
-  int solve(Pose& pose, MappingResult& result);
+  MatchSolveResult solve(Pose& pose, MappingResult& result);
   static bool fitNeighbours(const KdTree& tree, const Cloud& cloud, const Point& query, int k, double max_sq_distance,
                             Neighbourhood& fit);
   bool matchEdge(const Point& p, const Pose& pose, LineMatch& match) const;

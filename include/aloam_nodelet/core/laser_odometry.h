@@ -1,6 +1,7 @@
 // LOAM laser odometry: scan-to-scan edge and plane matching against the previous sweep.
 #pragma once
 
+#include <algorithm>
 #include <memory>
 
 #include <vector>
@@ -14,12 +15,23 @@ namespace aloam
 {
 struct LaserOdometryConfig
 {
-  int max_iterations = 4;                   ///< Ceres iterations per solve
-  int outer_iterations = 2;                 ///< correspondence searches per sweep, each followed by a solve
-  double distance_sq_threshold = 25.0;      ///< nearest neighbour farther than this (m^2) is no match
-  double nearby_scan = 2.5;                 ///< rings searched on each side for the second/third point
-  bool deskew = false;                      ///< correct motion within the sweep (needs per-point time)
-  bool constant_velocity = true;            ///< start each solve from the previous sweep's motion
+  int max_iterations = 4;               ///< Ceres iterations per solve
+  int outer_iterations = 2;             ///< correspondence searches per sweep, each followed by a solve
+  double distance_sq_threshold = 25.0;  ///< nearest neighbour farther than this (m^2) is no match
+  double nearby_scan = 2.5;             ///< rings searched on each side for the second/third point
+  /// Correct motion within the sweep (needs per-point time, from the point field or the azimuth): each
+  /// point is moved by the velocity times its time in the sweep. Sources that deliver keyframes or clouds
+  /// already deskewed (or with no meaningful intra-sweep time) set this false: the clouds are then taken
+  /// as rigid snapshots at their stamps, and the motion prediction still scales with the time between
+  /// stamps (time_scaling), so any input rate works.
+  bool deskew = false;
+  bool constant_velocity = true;  ///< start each solve from the previous sweep's velocity
+  /// The motion model is a velocity: the prediction for a sweep is the last motion scaled by (time since
+  /// the last stamp) / (time the last motion took), and deskewing uses velocity x scan_period, so both are
+  /// right at any input rate (throttled topics, dropped sweeps). false: the last stamp-to-stamp motion is
+  /// the prediction and the deskew motion whatever the spacing (A-LOAM; right only when sweeps are
+  /// scan_period apart). At a steady rate equal to scan_period both give the same result.
+  bool time_scaling = true;
   double huber_delta = 0.1;                 ///< robust loss scale (m)
   int min_correspondences = 10;             ///< fewer matches: keep the motion prior, report degraded
   int min_last_corners = 10;                ///< previous sweep needs this many edge points to match against
@@ -29,6 +41,13 @@ struct LaserOdometryConfig
   /// a point constraint_lever_arm metres away) keeps the motion prior.
   double min_constraint = 10.0;
   double constraint_lever_arm = 10.0;
+  /// Degeneracy per direction (solution remapping): directions of the motion whose constraint (eigenvalue,
+  /// scaled as above) is below min_constraint keep the prediction, the others take the solve; only a frame
+  /// with no constrained direction keeps the whole prediction. false: any weak direction keeps the whole
+  /// prediction (all six degrees of freedom; A-LOAM-like all-or-nothing).
+  bool degeneracy_remap = true;
+  /// More degenerate directions than this: the whole prediction is kept (see MatchSolveOptions::max_degenerate).
+  int max_degenerate_directions = 3;
   int threads = 2;  ///< threads sharing the correspondence search (results do not depend on it)
 };
 
@@ -37,6 +56,7 @@ enum class OdometryStatus
   kInitialized,  ///< first sweep: pose is identity, nothing to match yet
   kOk,
   kDegraded,  ///< too few or degenerate correspondences, or a divergent solve: the motion prior was used
+  kRemapped,  ///< some directions degenerate: the prior kept along them, the solve along the others
 };
 
 /// One sweep's odometry: the pose and the clouds mapping needs, in the sensor frame at the sweep end.
@@ -49,6 +69,10 @@ struct OdometryFrame
   int corner_matches = 0;
   int plane_matches = 0;
   double constraint = 0.0;  ///< how well the matches pin the motion down (0: degenerate)
+  /// Directions the matches did not pin down (eigenvalue below min_constraint), in the sensor frame at the
+  /// sweep end; their number is the count of degenerate directions (6: nothing constrained).
+  std::vector<DegenerateDirection> degenerate;
+  double dt = 0.0;  ///< seconds since the previous sweep's stamp (0 for the first)
   /// The clouds still carry motion distortion that deskewing was asked to remove: the first sweep,
   /// whose motion is unknown. Mapping does not build its map from such clouds.
   bool distorted = false;
@@ -86,6 +110,8 @@ public:
     motion_unknown_ = true;
   }
   bool initialized() const { return last_corners_ != nullptr; }
+  /// The motion prior (previous sweep end <- sweep end) a sweep stamped `stamp` would start from.
+  Pose prediction(double stamp) const { return predict(initialized() ? std::max(stamp - last_stamp_, 0.0) : 0.0); }
   const Pose& pose() const { return pose_; }
 
 private:
@@ -94,6 +120,8 @@ private:
     int corners = 0;
     int planes = 0;
     double constraint = 0.0;
+    std::vector<DegenerateDirection> degenerate;
+    bool remapped = false;
   };
 
   LaserOdometryConfig config_;
@@ -104,6 +132,8 @@ private:
   bool last_distorted_ = false;  // the previous sweep's clouds could not be deskewed
   bool last_indexed_ = false;    // the trees below index last_corners_ / last_surfs_
   bool motion_unknown_ = false;  // resetMotionPrior() was called: no velocity for the next sweep
+  double motion_dt_ = 0.0;       // seconds motion_ took (0: unknown)
+  double last_stamp_ = 0.0;      // stamp of the previous sweep
   // The previous sweep's features indexed as a whole (nearest point) and ring by ring (the points
   // that complete a line or a plane on neighbouring rings).
   KdTree corner_tree_;
@@ -114,6 +144,10 @@ private:
   Matches solve(const Cloud& sharp, const Cloud& flat, Pose& motion) const;
   bool matchEdge(const Point& p, const Pose& motion, LineMatch& match) const;
   bool matchPlane(const Point& p, const Pose& motion, PlaneMatch& match) const;
+  /// The prediction for a sweep `dt` seconds after the last one (the last motion at constant velocity).
+  Pose predict(double dt) const;
+  /// The motion over one scan period of a sweep whose stamp-to-stamp motion took `dt` seconds.
+  Pose perScanPeriod(const Pose& motion, double dt, double scan_period) const;
   std::shared_ptr<const Cloud> toSweepEnd(const std::shared_ptr<const FeatureSet>& owner, const Cloud& cloud,
                                           const Pose& motion) const;
   static void indexByRing(const Cloud& cloud, KdTree& all, std::vector<KdTree>& rings);

@@ -35,6 +35,19 @@ struct Pose
   /// The pose a fraction `s` of the way from identity to this one (slerp / linear), LOAM's
   /// constant-velocity model within a sweep.
   Pose interpolated(double s) const { return Pose(Eigen::Quaterniond::Identity().slerp(s, q), s * t); }
+
+  /// This motion scaled in time by `s` at constant velocity: the rotation angle about the same axis and
+  /// the translation times `s` (the model deskewing uses within a sweep). Unlike interpolated(), `s` may
+  /// exceed 1; `s == 1` returns this pose unchanged, bit for bit.
+  Pose scaled(double s) const
+  {
+    if (s == 1.0)
+    {
+      return *this;
+    }
+    const Eigen::AngleAxisd rotation(q.normalized());
+    return Pose(Eigen::Quaterniond(Eigen::AngleAxisd(s * rotation.angle(), rotation.axis())), s * t);
+  }
 };
 
 /// Applies `pose` to the coordinates of `p`, keeping its other fields.

@@ -1,8 +1,11 @@
 // The pose problem both matching stages solve: a quaternion and a translation under point residuals.
 #pragma once
 
+#include <string>
 #include <utility>
 #include <vector>
+
+#include <Eigen/Core>
 
 #include "aloam_nodelet/core/lidar_factors.h"
 #include "aloam_nodelet/core/parallel.h"
@@ -19,6 +22,37 @@ struct MatchSlots
   std::vector<char> line_found, plane_found;
 
   void resize(std::size_t line_points, std::size_t plane_points);
+};
+
+/// A direction of the pose that the matches do not pin down (an eigenvector of J^T J with rotations scaled
+/// by the lever arm, see PoseProblem::degeneracy), expressed in the frame of the pose's child (the sensor
+/// at the sweep end). rotation and translation together form a unit 6-vector: `rotation` is the rotation
+/// axis times the motion (m) it gives a point lever-arm metres away, `translation` is in metres.
+struct DegenerateDirection
+{
+  Eigen::Vector3d rotation = Eigen::Vector3d::Zero();
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+  double eigenvalue = 0.0;  ///< constraint strength along this direction
+};
+
+/// Readable form for diagnostics, e.g. "translation along (0.99, 0.01, 0.00)" or "rotation about
+/// (0.00, 0.00, 1.00)"; a direction mixing both names the smaller part too.
+std::string describe(const DegenerateDirection& direction);
+/// All directions, "; "-separated ("none" if empty).
+std::string describe(const std::vector<DegenerateDirection>& directions);
+
+/// The eigen-decomposition of the scaled normal matrix of a PoseProblem.
+struct Degeneracy
+{
+  Eigen::Matrix<double, 6, 1> eigenvalues = Eigen::Matrix<double, 6, 1>::Zero();       ///< ascending
+  Eigen::Matrix<double, 6, 6> eigenvectors = Eigen::Matrix<double, 6, 6>::Identity();  ///< columns, scaled tangent
+  double lever_arm = 10.0;
+  int degenerate = 0;  ///< eigenvalues below the threshold (the first `degenerate` columns)
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  ///< the pose's rotation it was taken at
+
+  double smallest() const { return eigenvalues[0]; }
+  /// The degenerate directions in the frame of the pose's child.
+  std::vector<DegenerateDirection> directions() const;
 };
 
 /// The pose problem of one correspondence search: a quaternion (Eigen's x, y, z, w order, on the
@@ -46,6 +80,16 @@ public:
   /// VLP-16 sweep and 500 for an HDL-64 sweep.
   double constraintStrength(double lever_arm) const;
 
+  /// The eigen-decomposition behind constraintStrength() at the current pose: tangent (rotation applied
+  /// on the left, i.e. in the parent frame, times `lever_arm`; translation in m). Directions with an
+  /// eigenvalue below `threshold` count as degenerate. Without matches every direction is (eigenvalues 0).
+  Degeneracy degeneracy(double lever_arm, double threshold) const;
+
+  /// Solution remapping (Zhang, Kaess & Singh, ICRA 2016): keeps the step from `prior` to the current pose
+  /// only along the well-constrained directions of `degeneracy` and the prior along the degenerate ones.
+  /// The step is taken in the scaled tangent at `prior` (rotation Log(q q_prior^-1), translation t - t_prior).
+  void remap(const Pose& prior, const Degeneracy& degeneracy);
+
 private:
   double q_[4];
   double t_[3];
@@ -64,6 +108,15 @@ struct MatchSolveOptions
   int min_matches = 10;      ///< fewer matches: stop without solving
   double huber_delta = 0.1;
   double lever_arm = 10.0;  ///< for the constraint strength of the last solve
+  /// Eigenvalues of the scaled normal matrix below this are degenerate directions.
+  double min_constraint = 0.0;
+  /// Solution remapping: after every solve, keep the pose from before the solve along degenerate
+  /// directions (PoseProblem::remap). Off: the solves run unchanged and only the last is analysed.
+  bool remap = false;
+  /// With remapping, a solve with more degenerate directions than this keeps the prior along all six: so
+  /// few constrained directions come from broken input (one point repeated, a handful of matches) more
+  /// often than from geometry (a corridor leaves 1, an open floor 3).
+  int max_degenerate = 3;
 };
 
 /// The options of a stage whose configuration names them alike (LaserOdometryConfig, LaserMappingConfig).
@@ -77,6 +130,9 @@ MatchSolveOptions matchSolveOptionsOf(const StageConfig& config)
   options.min_matches = config.min_correspondences;
   options.huber_delta = config.huber_delta;
   options.lever_arm = config.constraint_lever_arm;
+  options.min_constraint = config.min_constraint;
+  options.remap = config.degeneracy_remap;
+  options.max_degenerate = config.max_degenerate_directions;
   return options;
 }
 
@@ -85,11 +141,16 @@ struct MatchSolveResult
   int lines = 0;  ///< matches of the last search
   int planes = 0;
   double constraint = 0.0;  ///< PoseProblem::constraintStrength after the last solve (0 if none)
+  /// Degenerate directions of the last solve (before remapping it), in the frame of the pose's child.
+  std::vector<DegenerateDirection> degenerate;
+  bool remapped = false;  ///< the last solve was remapped (some but not all directions degenerate)
 };
 
 /// The loop of both matching stages: `outer_iterations` times, match every point from the current
 /// `pose` (match_line(i, pose, slot) for i < line_points, match_plane likewise; independent per point,
-/// so split over the threads), then solve from `pose`. `pose` ends at the last solution.
+/// so split over the threads), then solve from `pose`. `pose` ends at the last solution. With
+/// `options.remap`, every solve is remapped onto the directions it constrains (PoseProblem::remap from the
+/// pose before the solve); a solve that constrains no direction leaves the pose where it was.
 template <typename MatchLine, typename MatchPlane>
 MatchSolveResult matchAndSolve(Pose& pose, std::size_t line_points, std::size_t plane_points,
                                const MatchSolveOptions& options, MatchLine&& match_line, MatchPlane&& match_plane)
@@ -120,17 +181,32 @@ MatchSolveResult matchAndSolve(Pose& pose, std::size_t line_points, std::size_t 
                    });
     PoseProblem problem(pose, options.huber_delta, options.threads);
     const auto [lines, planes] = problem.addMatches(slots);
-    result = MatchSolveResult{ lines, planes, 0.0 };
+    result = MatchSolveResult();
+    result.lines = lines;
+    result.planes = planes;
     if (lines + planes < options.min_matches)
     {
       break;
     }
+    const Pose before = pose;
     problem.solve(options.max_iterations);
-    pose = problem.pose();
-    if (outer + 1 == options.outer_iterations)
+    if (options.remap || outer + 1 == options.outer_iterations)
     {
-      result.constraint = problem.constraintStrength(options.lever_arm);
+      const Degeneracy degeneracy = problem.degeneracy(options.lever_arm, options.min_constraint);
+      result.constraint = degeneracy.smallest();
+      result.degenerate = degeneracy.directions();
+      if (options.remap && degeneracy.degenerate > 0)
+      {
+        Degeneracy weak = degeneracy;
+        if (weak.degenerate > options.max_degenerate)
+        {
+          weak.degenerate = 6;  // too little constrained to trust: nothing of the solve is kept
+        }
+        problem.remap(before, weak);
+        result.remapped = weak.degenerate < 6;
+      }
     }
+    pose = problem.pose();
   }
   return result;
 }

@@ -1,5 +1,5 @@
-// Extra deterministic scenes for the simulator: an urban street with a hill, an indoor corridor and
-// an open field. ROS-free.
+// Extra deterministic scenes for the simulator: an urban street with a hill, an indoor corridor, an
+// open field, an L-shaped office corridor, a road tunnel and a stairwell. ROS-free.
 #pragma once
 
 #include "aloam_nodelet/sim/scene.h"
@@ -55,6 +55,86 @@ Scene corridorScene(unsigned seed, const CorridorOptions& options = CorridorOpti
 /// Flat ground (z = 0) with very few objects (a few boxes, poles and a boulder) scattered along +x
 /// between x = 20 and x = length_m, at least 8 m from the x axis.
 Scene openFieldScene(unsigned seed, double length_m = 300.0);
+
+/// Options of officeScene: an L of two corridors with doors, niches, cabinets and ceiling lights, floor
+/// at z = 0 and a ceiling. The first corridor runs along +x from its end wall at x = 0, centered on
+/// y = 0; at its far end (outer wall face at x = first_length_m) it turns 90 degrees left into the
+/// second corridor, which runs along +y centered on x = turnCenterX() up to y = 0.5 * width_m +
+/// second_length_m.
+struct OfficeOptions
+{
+  double first_length_m = 16.0;   // x = 0 to the outer wall of the corner
+  double second_length_m = 24.0;  // beyond the first corridor's wall line
+  double width_m = 2.5;           // wall to wall, both corridors
+  double height_m = 2.8;          // floor (z = 0) to ceiling
+  double wall_thickness_m = 0.3;
+  double feature_spacing_m = 6.0;  // mean spacing of doors / niches along each wall
+  double spacing_jitter_m = 1.5;
+  double door_width_m = 1.0;
+  double recess_depth_m = 0.25;
+  double light_spacing_m = 3.0;
+  double clutter_probability = 0.5;  // chance of a cabinet against each stretch of wall between openings
+  double clutter_depth_max_m = 0.5;  // cabinets stick out at most this far from the wall face
+
+  /// x of the second corridor's centerline.
+  double turnCenterX() const { return first_length_m - 0.5 * width_m; }
+  /// y of the second corridor's end wall face.
+  double secondEndY() const { return 0.5 * width_m + second_length_m; }
+};
+
+/// L-shaped office corridor (deterministic for a seed; the layout of openings and clutter depends on it).
+Scene officeScene(unsigned seed, const OfficeOptions& options = OfficeOptions());
+
+/// Options of tunnelScene: a road tunnel along +x with vertical side walls and a polygonal arch, a
+/// raised walkway and a cable tray along the walls, and sparse features (safety niches, wall lights,
+/// standpipes) every feature_spacing_min_m..feature_spacing_max_m.
+struct TunnelOptions
+{
+  double length_m = 300.0;       // features from x = 0 to x = length_m; the end wall a little beyond
+  double back_length_m = 100.0;  // the tunnel continues this far behind x = 0 (its end wall out of reach)
+  double width_m = 6.0;          // wall to wall at the floor
+  double wall_height_m = 3.0;    // the arch (radius width_m / 2, centered on the wall tops) starts here
+  int arch_chords = 4;           // planar chords per side approximating the quarter circles
+  double lining_thickness_m = 1.5;
+  double walkway_width_m = 0.8;  // raised walkway along the +y wall
+  double walkway_height_m = 0.2;
+  double feature_spacing_min_m = 10.0;
+  double feature_spacing_max_m = 20.0;
+  double niche_width_m = 2.0;
+  double niche_depth_m = 1.0;
+  double niche_height_m = 2.4;
+
+  /// Height of the crown above the floor.
+  double crownHeight() const { return wall_height_m + 0.5 * width_m; }
+};
+
+/// Road tunnel (deterministic for a seed: the positions and kinds of the sparse features).
+Scene tunnelScene(unsigned seed, const TunnelOptions& options = TunnelOptions());
+
+/// Options of stairsScene: one straight flight in a walled stairwell along +x. Riser i (0-based) is at
+/// x = i * tread_m; after it the floor is at (i + 1) * rise_m; the top landing starts at
+/// x = (risers - 1) * tread_m at height risers * rise_m.
+struct StairsOptions
+{
+  int risers = 17;
+  double rise_m = 0.175;
+  double tread_m = 0.28;
+  double width_m = 2.2;           // wall to wall
+  double bottom_landing_m = 4.0;  // floor behind the first riser
+  double top_landing_m = 5.0;     // beyond the last riser
+  double ceiling_height_m = 6.0;  // above the bottom floor
+  double wall_thickness_m = 0.3;
+
+  double run() const { return (risers - 1) * tread_m; }
+  double totalRise() const { return risers * rise_m; }
+};
+
+/// Stairwell with doors at both ends, wall lamps, a stepped handrail and a few objects on the landings.
+Scene stairsScene(unsigned seed, const StairsOptions& options = StairsOptions());
+
+/// A smooth walking surface over the flight (for the trajectories): flat on the bottom landing, the
+/// mean slope of the nosings over the flight, flat at totalRise() on the top landing.
+GroundProfile stairsProfile(const StairsOptions& options = StairsOptions());
 
 }  // namespace sim
 }  // namespace aloam

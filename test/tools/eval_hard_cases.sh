@@ -1,0 +1,93 @@
+#!/usr/bin/env bash
+# Hard simulated cases of issue 11 (office corridor with an L turn, sparse tunnel, yaw bursts with stops,
+# stairs, throttled topics, a wide-FOV Ouster indoors): for each case and seed, simulates a bag with
+# aloam_sim, maps it with aloam_offline --deskew and prints one line of figures against the simulator's
+# exact ground truth. Reports only (no bounds): the figures are the "before"/"after" numbers of the issue.
+#
+# Usage: eval_hard_cases.sh BIN_DIR OUT_DIR [ALOAM_OFFLINE_ARGS...]
+#   BIN_DIR             devel/lib/aloam_nodelet (aloam_sim, aloam_offline, aloam_eval)
+#   OUT_DIR             scratch folder: per run logs, trajectories and the table (results.txt)
+#   ALOAM_OFFLINE_ARGS  passed on to every aloam_offline run (e.g. --baseline)
+# Environment: SEEDS (default "1 2 3"), CASES (names to run, default all), KEEP_BAGS=1 keeps the bags.
+# Needs Debian's python3 (rosbag, numpy) first on PATH and the workspace's setup.bash sourced.
+#
+# Columns: ATE (m, after rigid alignment, aloam_eval), translation drift (%) and rotation drift
+# (deg/100 m) over the case's segment lengths, the largest heading (yaw) error without alignment (deg),
+# and how many estimated steps move against the true step (dot product < 0) among the true steps
+# longer than 5 cm. frames / period_s are the published sweeps and the spacing of their stamps.
+set -uo pipefail
+if [ $# -lt 2 ]; then
+  sed -n '2,20p' "$0" >&2
+  exit 2
+fi
+bin="$1" out="$2"
+shift 2
+offline_args=("$@")
+here="$(cd "$(dirname "$0")" && pwd)"
+metrics="$here/hard_case_metrics.py"
+seeds="${SEEDS:-1 2 3}"
+mkdir -p "$out"
+
+# name scene trajectory sensor duration_s keep_every segments_m
+case_table=(
+  "office_handheld    office handheld_turn   VLP16  18 1 5,10,20"
+  "tunnel_car         tunnel car             VLP16  10 1 10,20,50"
+  "bursts_urban       urban  handheld_bursts VLP16  18 1 5,10,20"
+  "stairs_handheld    stairs handheld        VLP16  15 1 2,4,8"
+  "urban_car_10hz     urban  car             VLP16  10 1 10,20,50"
+  "urban_car_5hz      urban  car             VLP16  10 2 10,20,50"
+  "urban_car_2hz      urban  car             VLP16  10 5 10,20,50"
+  "urban_handheld_10hz urban handheld        VLP16  18 1 5,10,20"
+  "urban_handheld_5hz urban  handheld        VLP16  18 2 5,10,20"
+  "office_os0         office handheld_turn   OS0_64 18 1 5,10,20"
+)
+
+figure() { awk -v k="$1:" '$1 == k {print $2}' "$2"; }
+field() { awk -v k="$1" '{for (i = 1; i < NF; ++i) if ($i == k) {print $(i + 1); exit}}' "$2"; }
+
+results="$out/results.txt"
+header=$(printf "%-20s %4s %6s %8s %8s %9s %12s %11s %9s" case seed frames period_s ate_m drift_% "rot_deg/100m" \
+  max_head_deg backward)
+echo "# aloam_offline extra args: ${offline_args[*]:-(none)}" | tee "$results"
+echo "$header" | tee -a "$results"
+start_all=$(date +%s)
+status=0
+for row in "${case_table[@]}"; do
+  read -r name scene trajectory sensor duration keep segments <<<"$row"
+  if [ -n "${CASES:-}" ] && ! grep -qw "$name" <<<"$CASES"; then
+    continue
+  fi
+  for seed in $seeds; do
+    run="$out/${name}_s$seed"
+    mkdir -p "$run"
+    bag="$run/sim.bag"
+    if ! "$bin/aloam_sim" --sensor "$sensor" --scene "$scene" --trajectory "$trajectory" --duration "$duration" \
+      --seed "$seed" --keep-every "$keep" --bag "$bag" >"$run/sim.txt" 2>&1; then
+      printf "%-20s %4s FAILED: aloam_sim (see %s)\n" "$name" "$seed" "$run/sim.txt" | tee -a "$results"
+      status=1
+      continue
+    fi
+    if ! "$bin/aloam_offline" --bag "$bag" --topic velodyne_points --sensor "$sensor" --deskew \
+      --trajectory "$run/est.txt" "${offline_args[@]}" >"$run/offline.txt" 2>&1; then
+      printf "%-20s %4s FAILED: aloam_offline (see %s)\n" "$name" "$seed" "$run/offline.txt" | tee -a "$results"
+      status=1
+      continue
+    fi
+    if ! python3 "$metrics" gt "$bag" "$run/gt.txt" >"$run/gt_info.txt" 2>&1 ||
+      ! "$bin/aloam_eval" --gt "$run/gt.txt" --trajectory "$run/est.txt" --segments "$segments" \
+        >"$run/eval.txt" 2>&1 ||
+      ! python3 "$metrics" compare "$run/gt.txt" "$run/est.txt" >"$run/compare.txt" 2>&1; then
+      printf "%-20s %4s FAILED: evaluation (see %s)\n" "$name" "$seed" "$run" | tee -a "$results"
+      status=1
+      continue
+    fi
+    [ "${KEEP_BAGS:-0}" = 1 ] || rm -f "$bag"
+    printf "%-20s %4s %6s %8s %8s %9s %12s %11s %9s\n" "$name" "$seed" "$(field frames "$run/gt_info.txt")" \
+      "$(field period_s "$run/gt_info.txt")" "$(figure ate_rmse_m "$run/eval.txt")" \
+      "$(figure translation_drift_percent "$run/eval.txt")" "$(figure rotation_deg_per_100m "$run/eval.txt")" \
+      "$(field max_heading_deg "$run/compare.txt")" \
+      "$(field backward_steps "$run/compare.txt")/$(field of "$run/compare.txt")" | tee -a "$results"
+  done
+done
+echo "# $(($(date +%s) - start_all)) s; per-run files under $out" | tee -a "$results"
+exit $status
