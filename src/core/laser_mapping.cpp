@@ -128,8 +128,8 @@ MatchSolveResult LaserMapping::solve(Pose& pose, MappingResult& result)
   const MatchSolveOptions options = matchSolveOptionsOf(config_);
   const MatchSolveResult r = matchAndSolve(
       pose, corner_stack_.size(), surf_stack_.size(), options,
-      [&](int i, const Pose& at, LineMatch& slot) { return matchEdge(corner_stack_.points[i], at, slot); },
-      [&](int i, const Pose& at, PlaneMatch& slot) { return matchPlane(surf_stack_.points[i], at, slot); });
+      [&](int i, const Pose& at, double, LineMatch& slot) { return matchEdge(corner_stack_.points[i], at, slot); },
+      [&](int i, const Pose& at, double, PlaneMatch& slot) { return matchPlane(surf_stack_.points[i], at, slot); });
   result.corner_matches = r.lines;
   result.plane_matches = r.planes;
   result.constraint = r.constraint;

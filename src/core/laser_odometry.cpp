@@ -107,10 +107,10 @@ void LaserOdometry::indexByRing(const Cloud& cloud, KdTree& all, std::vector<KdT
   }
 }
 
-bool LaserOdometry::matchEdge(const Point& p, const Pose& motion, LineMatch& match) const
+bool LaserOdometry::matchEdge(const Point& p, const Pose& motion, double search_scale, LineMatch& match) const
 {
   const Cloud& last = *last_corners_;
-  const auto threshold = static_cast<float>(config_.distance_sq_threshold);
+  const auto threshold = static_cast<float>(config_.distance_sq_threshold * search_scale);
   const int nearby = static_cast<int>(std::floor(config_.nearby_scan));
   const Point sel = transformPoint(motion, p);
   const int closest = corner_tree_.nearest(sel, threshold);
@@ -139,10 +139,10 @@ bool LaserOdometry::matchEdge(const Point& p, const Pose& motion, LineMatch& mat
   return true;
 }
 
-bool LaserOdometry::matchPlane(const Point& p, const Pose& motion, PlaneMatch& match) const
+bool LaserOdometry::matchPlane(const Point& p, const Pose& motion, double search_scale, PlaneMatch& match) const
 {
   const Cloud& last = *last_surfs_;
-  const auto threshold = static_cast<float>(config_.distance_sq_threshold);
+  const auto threshold = static_cast<float>(config_.distance_sq_threshold * search_scale);
   const int nearby = static_cast<int>(std::floor(config_.nearby_scan));
   const Point sel = transformPoint(motion, p);
   const int closest = surf_tree_.nearest(sel, threshold);
@@ -172,14 +172,54 @@ bool LaserOdometry::matchPlane(const Point& p, const Pose& motion, PlaneMatch& m
   return true;
 }
 
-LaserOdometry::Matches LaserOdometry::solve(const Cloud& sharp, const Cloud& flat, Pose& motion) const
+LaserOdometry::Matches LaserOdometry::solve(const Cloud& sharp, const Cloud& flat, Pose& motion, int outer_iterations,
+                                            double search_scale) const
 {
-  const MatchSolveOptions options = matchSolveOptionsOf(config_);
+  MatchSolveOptions options = matchSolveOptionsOf(config_);
+  options.outer_iterations = outer_iterations;
+  options.first_search_scale = search_scale;
   const MatchSolveResult r = matchAndSolve(
       motion, sharp.size(), flat.size(), options,
-      [&](int i, const Pose& m, LineMatch& slot) { return matchEdge(sharp.points[i], m, slot); },
-      [&](int i, const Pose& m, PlaneMatch& slot) { return matchPlane(flat.points[i], m, slot); });
-  return Matches{ r.lines, r.planes, r.constraint, r.degenerate, r.remapped };
+      [&](int i, const Pose& m, double scale, LineMatch& slot) { return matchEdge(sharp.points[i], m, scale, slot); },
+      [&](int i, const Pose& m, double scale, PlaneMatch& slot) { return matchPlane(flat.points[i], m, scale, slot); });
+  return Matches{ r.lines, r.planes, r.constraint, r.degenerate, r.remapped, r.inlier_share };
+}
+
+std::vector<Pose> LaserOdometry::hypotheses(const Pose& prior) const
+{
+  std::vector<Pose> starts;
+  starts.push_back(prior);  // first: the prediction again, with the wider first search and more iterations
+  // Near-zero prediction: zero and the doubled prediction would repeat it.
+  constexpr double kTrivialTranslation = 0.01, kTrivialAngle = 1e-3;
+  const bool trivial = prior.t.norm() < kTrivialTranslation && Eigen::AngleAxisd(prior.q).angle() < kTrivialAngle;
+  if (!trivial)
+  {
+    starts.push_back(Pose());             // a stop
+    starts.push_back(prior.scaled(2.0));  // a start, an acceleration
+  }
+  else if (config_.hypothesis_translation > 0.0)
+  {
+    // From rest (or after a gap) nothing predicts the direction: translations along the sensor's x and y
+    // axes, at the step and twice the step.
+    for (const double d : { config_.hypothesis_translation, 2.0 * config_.hypothesis_translation })
+    {
+      const Eigen::Vector3d axes[] = { Eigen::Vector3d::UnitX(), Eigen::Vector3d::UnitY() };
+      for (const Eigen::Vector3d& axis : axes)
+      {
+        starts.emplace_back(prior.q, prior.t + d * axis);
+        starts.emplace_back(prior.q, prior.t - d * axis);
+      }
+    }
+  }
+  const double yaw = config_.hypothesis_yaw_deg * M_PI / 180.0;
+  for (const double angle : { yaw, -yaw, 2.0 * yaw, -2.0 * yaw })
+  {
+    // Turned about the sensor's z axis at the sweep end (motion = previous end <- this end).
+    Pose turned = prior;
+    turned.q = (prior.q * Eigen::Quaterniond(Eigen::AngleAxisd(angle, Eigen::Vector3d::UnitZ()))).normalized();
+    starts.push_back(turned);
+  }
+  return starts;
 }
 
 Pose LaserOdometry::predict(double dt) const
@@ -265,6 +305,7 @@ OdometryFrame LaserOdometry::track(const std::shared_ptr<const FeatureSet>& feat
   // Seconds since the previous sweep; 0 when unknown (first sweep, repeated or earlier stamp).
   const double dt = initialized() ? std::max(features->stamp - last_stamp_, 0.0) : 0.0;
   frame.dt = dt;
+  frame.scan_period = features->scan_period;
 
   if (!initialized())
   {
@@ -292,7 +333,35 @@ OdometryFrame LaserOdometry::track(const std::shared_ptr<const FeatureSet>& feat
         deskewToSweepEnd(features->sharp, within, features->scan_period, sharp);
         deskewToSweepEnd(features->flat, within, features->scan_period, flat);
       }
-      const Matches m = solve(deskew ? sharp : features->sharp, deskew ? flat : features->flat, motion);
+      const Cloud& sharp_in = deskew ? sharp : features->sharp;
+      const Cloud& flat_in = deskew ? flat : features->flat;
+      Matches m = solve(sharp_in, flat_in, motion, config_.outer_iterations, 1.0);
+      const auto usable = [&](const Matches& r, const Pose& solved)
+      {
+        return r.corners + r.planes >= config_.min_correspondences && solved.isFinite() &&
+               solved.t.norm() <= config_.max_translation_per_sweep;
+      };
+      if (config_.motion_hypotheses && m.inlier_share < config_.hypothesis_min_inlier_share)
+      {
+        // The prediction looks wrong: solve from other starts, keep the one with the most inliers.
+        frame.hypotheses_tried = true;
+        const std::vector<Pose> starts = hypotheses(prior);
+        for (std::size_t h = 0; h < starts.size(); ++h)
+        {
+          Pose candidate = starts[h];
+          const Matches c =
+              solve(sharp_in, flat_in, candidate, config_.hypothesis_outer_iterations, config_.hypothesis_search_scale);
+          // Along a degenerate direction a solve keeps its start, which for these starts is a guess, and a
+          // wider search on a poorly constrained sweep wanders: only fully constrained solves count.
+          if (usable(c, candidate) && c.degenerate.empty() && (c.inlier_share > m.inlier_share || !usable(m, motion)))
+          {
+            m = c;
+            motion = candidate;
+            frame.hypothesis = static_cast<int>(h) + 1;
+          }
+        }
+      }
+      frame.inlier_share = m.inlier_share;
       frame.corner_matches = m.corners;
       frame.plane_matches = m.planes;
       frame.constraint = m.constraint;

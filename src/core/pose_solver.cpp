@@ -137,6 +137,25 @@ Degeneracy PoseProblem::degeneracy(double lever_arm, double threshold) const
   return out;
 }
 
+int PoseProblem::inliers(double max_residual) const
+{
+  const PoseTerms pose(q_, t_);
+  const double max_sq = max_residual * max_residual;
+  double r[3];
+  int count = 0;
+  for (const LineMatch& m : lines_)
+  {
+    evaluateLine(m, pose, r, nullptr, nullptr);
+    count += r[0] * r[0] + r[1] * r[1] + r[2] * r[2] < max_sq;
+  }
+  for (const PlaneMatch& m : planes_)
+  {
+    evaluatePlane(m, pose, r, nullptr, nullptr);
+    count += r[0] * r[0] < max_sq;
+  }
+  return count;
+}
+
 void PoseProblem::remap(const Pose& prior, const Degeneracy& degeneracy)
 {
   if (degeneracy.degenerate == 0)

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -330,6 +331,7 @@ int main(int argc, char** argv)
   {
     config.odometry.degeneracy_remap = false;
     config.odometry.time_scaling = false;
+    config.odometry.motion_hypotheses = false;
     config.mapping.degeneracy_remap = false;
   }
 
@@ -361,6 +363,8 @@ int main(int argc, char** argv)
   std::vector<double> stamps;
   std::vector<double> registration_ms, odometry_ms, mapping_ms, update_ms, pose_ms, total_ms;
   std::size_t rejected = 0, degraded_odometry = 0, degraded_mapping = 0, remapped_odometry = 0, remapped_mapping = 0;
+  std::size_t hypotheses_tried = 0, hypotheses_kept = 0;
+  std::vector<double> inlier_shares;
   Frame frame;
   const bool tty = isatty(fileno(stderr));
   const auto start = std::chrono::steady_clock::now();
@@ -383,6 +387,18 @@ int main(int argc, char** argv)
         degraded_mapping += out.mapping.status == aloam::MappingStatus::kDegraded;
         remapped_odometry += out.odometry.status == aloam::OdometryStatus::kRemapped;
         remapped_mapping += out.mapping.status == aloam::MappingStatus::kRemapped;
+        hypotheses_tried += out.odometry.hypotheses_tried;
+        hypotheses_kept += out.odometry.hypothesis > 0;
+        if (out.odometry.status != aloam::OdometryStatus::kInitialized)
+        {
+          inlier_shares.push_back(out.odometry.inlier_share);
+        }
+        if (std::getenv("ALOAM_OFFLINE_VERBOSE"))
+        {
+          std::cerr << "frame " << i << " odometry status " << static_cast<int>(out.odometry.status) << " inliers "
+                    << out.odometry.inlier_share << " hypothesis " << out.odometry.hypothesis << " mapping status "
+                    << static_cast<int>(out.mapping.status) << " motion " << out.odometry.motion.t.transpose() << "\n";
+        }
       }
       else
       {
@@ -426,6 +442,10 @@ int main(int argc, char** argv)
 
   std::cout << "frames: " << frames << "  rejected: " << rejected << "  odometry degraded: " << degraded_odometry
             << "  mapping degraded: " << degraded_mapping << "\n";
+  std::sort(inlier_shares.begin(), inlier_shares.end());
+  std::cout << "odometry hypotheses: tried on " << hypotheses_tried << " frames, another start kept on "
+            << hypotheses_kept << "; inlier share min " << (inlier_shares.empty() ? 0.0 : inlier_shares.front())
+            << " median " << (inlier_shares.empty() ? 0.0 : inlier_shares[inlier_shares.size() / 2]) << "\n";
   std::cout << "partially degenerate (remapped): odometry " << remapped_odometry << "  mapping " << remapped_mapping
             << "\n";
   std::cout << "registration: " << summary(registration_ms) << "\n";

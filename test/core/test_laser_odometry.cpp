@@ -416,4 +416,100 @@ TEST(LaserOdometryTest, DeskewMatchesPoseComposition)
   EXPECT_NEAR(out.points[7].x, in.points[7].x, 1e-6);
 }
 
+// Motion hypotheses (LaserOdometryConfig::motion_hypotheses): a motion far from the constant-velocity
+// guess. Three static VLP16 sweeps at 10 Hz: a steady step (the prediction for the third sweep), then the
+// same step with a sudden yaw (kBurstYawDeg in one sweep, a 250 deg/s burst) or, from rest, a first step of
+// kRestJump metres (a 2 Hz throttled car). With the default budget (2 searches x 4 iterations) and no
+// hypotheses the solve stays near the guess; with them the motion is found.
+namespace
+{
+constexpr double kSteadyStep = 0.5;        // m per sweep
+constexpr double kBurstYawDeg = 25.0;      // deg in one sweep
+constexpr double kRestJump = 5.0;          // m, first step from rest
+constexpr double kFoundTranslation = 0.1;  // m: the motion counts as found within this ...
+constexpr double kFoundRotationDeg = 0.5;  // ... and this
+constexpr double kHypothesisPlace = 60.0;  // x along the street
+
+struct HypothesisRun
+{
+  OdometryFrame frame;
+  double translation_error = 0.0;
+  double rotation_error_deg = 0.0;
+};
+
+// Odometry (default configuration but `hypotheses`) over sweeps at `poses`, 0.1 s apart; the last frame
+// against the last true motion.
+HypothesisRun runHypothesisCase(const std::vector<Eigen::Isometry3d>& poses, bool hypotheses)
+{
+  const SensorModel sensor = ts::preset("VLP16");
+  LaserOdometryConfig config;
+  config.motion_hypotheses = hypotheses;
+  LaserOdometry odometry(config);
+  HypothesisRun run;
+  for (std::size_t k = 0; k < poses.size(); ++k)
+  {
+    run.frame = odometry.process(features(ts::staticSweep(sensor, poses[k]), sensor, 0.1 * (k + 1), false));
+  }
+  const Pose truth = ts::toPose(poses[poses.size() - 2].inverse() * poses.back());
+  run.translation_error = ts::translationError(run.frame.motion, truth);
+  run.rotation_error_deg = ts::rotationErrorDeg(run.frame.motion, truth);
+  return run;
+}
+}  // namespace
+
+TEST(LaserOdometryTest, HypothesesFindASuddenYawBurst)
+{
+  const Eigen::Isometry3d a = ts::streetPose(kHypothesisPlace);
+  const Eigen::Isometry3d step = ts::poseFrom(kSteadyStep, 0.0, 0.0, 0.0);
+  const Eigen::Isometry3d b = a * step;
+  const Eigen::Isometry3d c = b * step * ts::poseFrom(0.0, 0.0, 0.0, kBurstYawDeg * ts::kDegToRad);
+  const HypothesisRun off = runHypothesisCase({ a, b, c }, false);
+  const HypothesisRun on = runHypothesisCase({ a, b, c }, true);
+  std::printf(
+      "[ measured ] %.0f deg yaw burst: without hypotheses %.3f m, %.2f deg (inliers %.2f); with %.3f m, "
+      "%.2f deg (inliers %.2f, start %d)\n",
+      kBurstYawDeg, off.translation_error, off.rotation_error_deg, off.frame.inlier_share, on.translation_error,
+      on.rotation_error_deg, on.frame.inlier_share, on.frame.hypothesis);
+  EXPECT_FALSE(off.frame.hypotheses_tried);
+  EXPECT_TRUE(off.translation_error > kFoundTranslation || off.rotation_error_deg > kFoundRotationDeg)
+      << "the case must defeat the plain solve";
+  EXPECT_TRUE(on.frame.hypotheses_tried);
+  EXPECT_GT(on.frame.hypothesis, 0);
+  EXPECT_GT(on.frame.inlier_share, off.frame.inlier_share);
+  EXPECT_LE(on.translation_error, kFoundTranslation);
+  EXPECT_LE(on.rotation_error_deg, kFoundRotationDeg);
+}
+
+TEST(LaserOdometryTest, HypothesesFindAFirstJumpFromRest)
+{
+  const Eigen::Isometry3d a = ts::streetPose(kHypothesisPlace);
+  const Eigen::Isometry3d b = a * ts::poseFrom(kRestJump, 0.0, 0.0, 0.0);
+  const HypothesisRun off = runHypothesisCase({ a, b }, false);
+  const HypothesisRun on = runHypothesisCase({ a, b }, true);
+  std::printf(
+      "[ measured ] %.1f m first step from rest: without hypotheses %.3f m (inliers %.2f); with %.3f m "
+      "(inliers %.2f, start %d)\n",
+      kRestJump, off.translation_error, off.frame.inlier_share, on.translation_error, on.frame.inlier_share,
+      on.frame.hypothesis);
+  EXPECT_GT(off.translation_error, 5.0 * kFoundTranslation) << "the case must defeat the plain solve";
+  EXPECT_TRUE(on.frame.hypotheses_tried);
+  EXPECT_LE(on.translation_error, kFoundTranslation);
+  EXPECT_LE(on.rotation_error_deg, kFoundRotationDeg);
+}
+
+// When the prediction is right the first solve keeps most points inliers and no other start is tried (no
+// extra cost at the sensor rate), and the result equals the one without hypotheses.
+TEST(LaserOdometryTest, HypothesesNotTriedWhenThePredictionHolds)
+{
+  const Eigen::Isometry3d a = ts::streetPose(kHypothesisPlace);
+  const Eigen::Isometry3d step = ts::poseFrom(kSteadyStep, 0.0, 0.0, 0.0);
+  const std::vector<Eigen::Isometry3d> poses = { a, a * step, a * step * step };
+  const HypothesisRun on = runHypothesisCase(poses, true);
+  const HypothesisRun off = runHypothesisCase(poses, false);
+  EXPECT_FALSE(on.frame.hypotheses_tried);
+  EXPECT_GE(on.frame.inlier_share, LaserOdometryConfig().hypothesis_min_inlier_share);
+  EXPECT_NEAR(ts::translationError(on.frame.motion, off.frame.motion), 0.0, kExactMetres);
+  EXPECT_LE(on.translation_error, kFoundTranslation);
+}
+
 }  // namespace aloam

@@ -239,12 +239,12 @@ MatchSolveResult solveFixed(const MatchSlots& slots, bool remap, double min_cons
   options.remap = remap;
   return matchAndSolve(
       pose, slots.lines.size(), slots.planes.size(), options,
-      [&](int i, const Pose&, LineMatch& m)
+      [&](int i, const Pose&, double, LineMatch& m)
       {
         m = slots.lines[i];
         return slots.line_found[i] != 0;
       },
-      [&](int i, const Pose&, PlaneMatch& m)
+      [&](int i, const Pose&, double, PlaneMatch& m)
       {
         m = slots.planes[i];
         return slots.plane_found[i] != 0;

@@ -40,6 +40,7 @@ struct LaserMappingConfig
   /// measured best of 0.05 / 0.15 / 0.3 on KITTI and on synthetic VLP-16 and HDL-64 drives).
   double plane_min_spread_ratio = 0.3;
   double huber_delta = 0.1;            ///< robust loss scale (m)
+  double inlier_residual = 0.0;        ///< > 0: count inliers (see MatchSolveOptions); mapping does not need it
   int min_map_corners = 10;            ///< submap needs this many edge points to register against
   int min_map_surfs = 50;              ///< ... and this many plane points
   int min_correspondences = 20;        ///< fewer matches: keep the prediction, report degraded

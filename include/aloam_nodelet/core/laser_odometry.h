@@ -48,6 +48,23 @@ struct LaserOdometryConfig
   bool degeneracy_remap = true;
   /// More degenerate directions than this: the whole prediction is kept (see MatchSolveOptions::max_degenerate).
   int max_degenerate_directions = 3;
+  /// A point is an inlier when its match lies within this (m) of the solved motion; the share of inliers
+  /// among all sharp and flat points says whether the solve found the motion.
+  double inlier_residual = 0.1;
+  /// Robust to a wrong constant-velocity guess (a yaw burst, a stop, a throttled start from rest): when the
+  /// solve from the prediction leaves fewer than hypothesis_min_inlier_share of the points inliers, the
+  /// motion is also solved from other starts (the prediction with a wider first search, zero motion, the
+  /// prediction doubled, the prediction turned by +-hypothesis_yaw_deg and twice that about the sensor's
+  /// z axis; from a zero prediction, translations of +-hypothesis_translation and twice that along the
+  /// sensor's x and y axes instead of zero and doubled), each with hypothesis_outer_iterations searches,
+  /// and the start whose solve keeps the most inliers wins. false: one solve from the prediction (A-LOAM).
+  bool motion_hypotheses = true;
+  double hypothesis_min_inlier_share = 0.5;
+  double hypothesis_yaw_deg = 20.0;
+  double hypothesis_translation = 2.5;  ///< m; <= 0: no translation starts
+  int hypothesis_outer_iterations = 4;
+  /// Factor on distance_sq_threshold for the first search of every hypothesis.
+  double hypothesis_search_scale = 4.0;
   int threads = 2;  ///< threads sharing the correspondence search (results do not depend on it)
 };
 
@@ -72,7 +89,13 @@ struct OdometryFrame
   /// Directions the matches did not pin down (eigenvalue below min_constraint), in the sensor frame at the
   /// sweep end; their number is the count of degenerate directions (6: nothing constrained).
   std::vector<DegenerateDirection> degenerate;
-  double dt = 0.0;  ///< seconds since the previous sweep's stamp (0 for the first)
+  double dt = 0.0;            ///< seconds since the previous sweep's stamp (0 for the first)
+  double scan_period = 0.1;   ///< the sweep's nominal duration (s)
+  double inlier_share = 0.0;  ///< share of the sharp and flat points that are inliers of the solved motion
+  /// The solve from the prediction looked wrong (few inliers) and other starts were tried
+  /// (LaserOdometryConfig::motion_hypotheses); `hypothesis` is the one kept (0: the prediction).
+  bool hypotheses_tried = false;
+  int hypothesis = 0;
   /// The clouds still carry motion distortion that deskewing was asked to remove: the first sweep,
   /// whose motion is unknown. Mapping does not build its map from such clouds.
   bool distorted = false;
@@ -122,6 +145,7 @@ private:
     double constraint = 0.0;
     std::vector<DegenerateDirection> degenerate;
     bool remapped = false;
+    double inlier_share = 0.0;
   };
 
   LaserOdometryConfig config_;
@@ -141,9 +165,12 @@ private:
   std::vector<KdTree> corner_ring_trees_;
   std::vector<KdTree> surf_ring_trees_;
 
-  Matches solve(const Cloud& sharp, const Cloud& flat, Pose& motion) const;
-  bool matchEdge(const Point& p, const Pose& motion, LineMatch& match) const;
-  bool matchPlane(const Point& p, const Pose& motion, PlaneMatch& match) const;
+  /// One solve from `motion` with `outer_iterations` searches, the first `search_scale` times as wide.
+  Matches solve(const Cloud& sharp, const Cloud& flat, Pose& motion, int outer_iterations, double search_scale) const;
+  /// The starts tried after a poor solve from `prior` (see LaserOdometryConfig::motion_hypotheses).
+  std::vector<Pose> hypotheses(const Pose& prior) const;
+  bool matchEdge(const Point& p, const Pose& motion, double search_scale, LineMatch& match) const;
+  bool matchPlane(const Point& p, const Pose& motion, double search_scale, PlaneMatch& match) const;
   /// The prediction for a sweep `dt` seconds after the last one (the last motion at constant velocity).
   Pose predict(double dt) const;
   /// The motion over one scan period of a sweep whose stamp-to-stamp motion took `dt` seconds.

@@ -85,6 +85,10 @@ public:
   /// eigenvalue below `threshold` count as degenerate. Without matches every direction is (eigenvalues 0).
   Degeneracy degeneracy(double lever_arm, double threshold) const;
 
+  /// Matches whose residual (distance to the line or plane, no robust loss) at the current pose is below
+  /// `max_residual` (m).
+  int inliers(double max_residual) const;
+
   /// Solution remapping (Zhang, Kaess & Singh, ICRA 2016): keeps the step from `prior` to the current pose
   /// only along the well-constrained directions of `degeneracy` and the prior along the degenerate ones.
   /// The step is taken in the scaled tangent at `prior` (rotation Log(q q_prior^-1), translation t - t_prior).
@@ -117,6 +121,12 @@ struct MatchSolveOptions
   /// few constrained directions come from broken input (one point repeated, a handful of matches) more
   /// often than from geometry (a corridor leaves 1, an open floor 3).
   int max_degenerate = 3;
+  /// > 0: after the last solve, count the points whose match lies within this (m) of the solved pose
+  /// (MatchSolveResult::inlier_share). 0: not counted.
+  double inlier_residual = 0.0;
+  /// Factor on the squared correspondence search radius of the first search (the later searches use 1): a
+  /// start far from the truth finds its matches farther away.
+  double first_search_scale = 1.0;
 };
 
 /// The options of a stage whose configuration names them alike (LaserOdometryConfig, LaserMappingConfig).
@@ -133,6 +143,7 @@ MatchSolveOptions matchSolveOptionsOf(const StageConfig& config)
   options.min_constraint = config.min_constraint;
   options.remap = config.degeneracy_remap;
   options.max_degenerate = config.max_degenerate_directions;
+  options.inlier_residual = config.inlier_residual;
   return options;
 }
 
@@ -144,10 +155,14 @@ struct MatchSolveResult
   /// Degenerate directions of the last solve (before remapping it), in the frame of the pose's child.
   std::vector<DegenerateDirection> degenerate;
   bool remapped = false;  ///< the last solve was remapped (some but not all directions degenerate)
+  /// Share of all points offered (line and plane points) whose last match lies within
+  /// MatchSolveOptions::inlier_residual of the final pose (0 when not counted or not solved).
+  double inlier_share = 0.0;
 };
 
 /// The loop of both matching stages: `outer_iterations` times, match every point from the current
-/// `pose` (match_line(i, pose, slot) for i < line_points, match_plane likewise; independent per point,
+/// `pose` (match_line(i, pose, scale, slot) for i < line_points, match_plane likewise, `scale` the factor
+/// on the squared search radius: first_search_scale in the first search, 1 after; independent per point,
 /// so split over the threads), then solve from `pose`. `pose` ends at the last solution. With
 /// `options.remap`, every solve is remapped onto the directions it constrains (PoseProblem::remap from the
 /// pose before the solve); a solve that constrains no direction leaves the pose where it was.
@@ -164,6 +179,7 @@ MatchSolveResult matchAndSolve(Pose& pose, std::size_t line_points, std::size_t 
   MatchSolveResult result;
   for (int outer = 0; outer < options.outer_iterations; ++outer)
   {
+    const double scale = outer == 0 ? options.first_search_scale : 1.0;
     parallelChunks(n_all, options.threads, kMinPointsPerThread,
                    [&](int begin, int end, int)
                    {
@@ -171,11 +187,12 @@ MatchSolveResult matchAndSolve(Pose& pose, std::size_t line_points, std::size_t 
                      {
                        if (i < n_lines)
                        {
-                         slots.line_found[i] = match_line(i, pose, slots.lines[i]);
+                         slots.line_found[i] = match_line(i, pose, scale, slots.lines[i]);
                        }
                        else
                        {
-                         slots.plane_found[i - n_lines] = match_plane(i - n_lines, pose, slots.planes[i - n_lines]);
+                         slots.plane_found[i - n_lines] =
+                             match_plane(i - n_lines, pose, scale, slots.planes[i - n_lines]);
                        }
                      }
                    });
@@ -207,6 +224,10 @@ MatchSolveResult matchAndSolve(Pose& pose, std::size_t line_points, std::size_t 
       }
     }
     pose = problem.pose();
+    if (options.inlier_residual > 0.0 && outer + 1 == options.outer_iterations && n_all > 0)
+    {
+      result.inlier_share = static_cast<double>(problem.inliers(options.inlier_residual)) / n_all;
+    }
   }
   return result;
 }
