@@ -244,6 +244,7 @@ class Check:
     def shell_commands(cls, text):
         """First words of the simple commands in a shell text (heuristic: heredocs, array literals,
         arithmetic, comments and quoted data are left out)."""
+        text = re.sub(r"^\s*#.*$", "", text, flags=re.M)  # comment lines
         text = re.sub(r"\b\w+=\((.*?)\)", "", text, flags=re.S)  # array literals
         text = re.sub(r"\\\n", " ", text)                      # continued lines
         commands = []
@@ -257,6 +258,7 @@ class Check:
             if m:
                 heredoc = m.group(1)
             line = re.sub(r"\$\(\((.*?)\)\)", "0", cls.code_of(raw))
+            line = re.sub(r"^\s*\(?[\w|*.\"'-]+\)\s", " ", line)  # a case pattern: "name) command ;;"
             line = re.sub(r"\[\[?[^\]]*\]\]?", "", line)  # test expressions
             for part in re.split(r"\|\||&&|[|;&]|\$\(|<\(|`|\(|\)|\bthen\b|\bdo\b|\belse\b|\btime\b", line):
                 words = part.split()
