@@ -263,7 +263,8 @@ class Check:
             for part in re.split(r"\|\||&&|[|;&]|\$\(|<\(|`|\(|\)|\bthen\b|\bdo\b|\belse\b|\btime\b", line):
                 words = part.split()
                 while words and (re.match(r"^[A-Za-z_]\w*=", words[0]) or
-                                 words[0] in ("!", "{", "}", "exec", "command", "nice", "env", "sudo", "$sudo")):
+                                 words[0] in ("!", "{", "}", "if", "elif", "while", "until", "exec", "command",
+                                              "nice", "env", "sudo", "$sudo")):
                     words = words[1:]
                 if words:
                     commands.append(words)
