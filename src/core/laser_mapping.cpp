@@ -123,9 +123,10 @@ bool LaserMapping::matchPlane(const Point& p, const Pose& pose, PlaneMatch& matc
   return true;
 }
 
-MatchSolveResult LaserMapping::solve(Pose& pose, MappingResult& result)
+MatchSolveResult LaserMapping::solve(Pose& pose, int outer_iterations, MappingResult& result)
 {
-  const MatchSolveOptions options = matchSolveOptionsOf(config_);
+  MatchSolveOptions options = matchSolveOptionsOf(config_);
+  options.outer_iterations = outer_iterations;
   const MatchSolveResult r = matchAndSolve(
       pose, corner_stack_.size(), surf_stack_.size(), options,
       [&](int i, const Pose& at, double, LineMatch& slot) { return matchEdge(corner_stack_.points[i], at, slot); },
@@ -205,7 +206,10 @@ MappingResult LaserMapping::registerFrame(const OdometryFrame& frame)
   if (static_cast<int>(submap_corners_.size()) >= config_.min_map_corners &&
       static_cast<int>(submap_surfs_.size()) >= config_.min_map_surfs)
   {
-    const MatchSolveResult solved = solve(pose, result);
+    const bool hard = frame.hard() && frame.status != OdometryStatus::kInitialized;
+    const int outer =
+        hard ? std::max(config_.outer_iterations, config_.hard_frame_outer_iterations) : config_.outer_iterations;
+    const MatchSolveResult solved = solve(pose, outer, result);
     const bool enough = solved.lines + solved.planes >= config_.min_correspondences;
     const bool sane = pose.isFinite() && (pose.t - prediction.t).norm() < config_.cube_size;
     if (enough && result.constraint >= config_.min_constraint && sane)
@@ -228,7 +232,7 @@ MappingResult LaserMapping::registerFrame(const OdometryFrame& frame)
   result.correction = correction_;
   // A distorted first sweep would warp the map every later sweep registers against: the map starts
   // with the first sweep whose motion is known.
-  pending_insert_ = !(frame.distorted && map_.cubeCount() == 0);
+  pending_insert_ = !(frame.distorted && map_.cubeCount() == 0 && !config_.insert_distorted_first);
   pending_pose_ = pose;
   return result;
 }

@@ -31,7 +31,7 @@ namespace
 constexpr const char* kUsage =
     "usage: aloam_offline (--kitti DIR | --bag FILE --topic TOPIC) --sensor PRESET --trajectory OUT.txt\n"
     "                     [--tum OUT.tum] [--map OUT.pcd] [--deskew] [--minimum-range M] [--max-frames N]\n"
-    "                     [--keep-every N] [--baseline]\n"
+    "                     [--keep-every N] [--baseline] [--odometry-trajectory OUT.txt]\n"
     "\n"
     "  --kitti DIR        KITTI odometry sequence folder: DIR/velodyne/*.bin (+ DIR/times.txt)\n"
     "  --bag FILE         rosbag with sensor_msgs/PointCloud2 on --topic\n"
@@ -39,6 +39,8 @@ constexpr const char* kUsage =
     "  --trajectory OUT   mapped lidar pose of every frame relative to the first, KITTI 3x4 rows\n"
     "  --tum OUT          the same poses in TUM format (stamp tx ty tz qx qy qz qw)\n"
     "  --map OUT.pcd      the feature map at the end (binary PCD)\n"
+    "  --odometry-trajectory OUT\n"
+    "                     odometry's pose of every frame (before mapping's correction), KITTI 3x4 rows\n"
     "  --deskew           correct motion within each sweep (KITTI scans are already corrected: off)\n"
     "  --minimum-range M  drop returns closer than M metres (default: 5 for --kitti, 0.3 otherwise)\n"
     "  --kitti-vertical-correction DEG\n"
@@ -53,7 +55,7 @@ constexpr const char* kUsage =
 
 struct Options
 {
-  std::string kitti_dir, bag_file, topic, sensor, trajectory, tum, map;
+  std::string kitti_dir, bag_file, topic, sensor, trajectory, tum, map, odometry_trajectory;
   bool deskew = false;
   bool baseline = false;
   std::size_t keep_every = 1;
@@ -228,6 +230,8 @@ bool parse(int argc, char** argv, Options& o)
       value(o.tum);
     else if (arg == "--map")
       value(o.map);
+    else if (arg == "--odometry-trajectory")
+      value(o.odometry_trajectory);
     else if (arg == "--deskew")
       o.deskew = true;
     else if (arg == "--baseline")
@@ -333,6 +337,7 @@ int main(int argc, char** argv)
     config.odometry.time_scaling = false;
     config.odometry.motion_hypotheses = false;
     config.mapping.degeneracy_remap = false;
+    config.mapping.hard_frame_outer_iterations = 0;
   }
 
   std::unique_ptr<FrameSource> source;
@@ -359,7 +364,7 @@ int main(int argc, char** argv)
             << "\n";
 
   aloam::Pipeline pipeline(config);
-  aloam::eval::Trajectory trajectory;
+  aloam::eval::Trajectory trajectory, odometry_trajectory;
   std::vector<double> stamps;
   std::vector<double> registration_ms, odometry_ms, mapping_ms, update_ms, pose_ms, total_ms;
   std::size_t rejected = 0, degraded_odometry = 0, degraded_mapping = 0, remapped_odometry = 0, remapped_mapping = 0;
@@ -371,6 +376,7 @@ int main(int argc, char** argv)
   for (std::size_t i = 0; i < frames; ++i)
   {
     aloam::Pose pose = trajectory.empty() ? aloam::Pose() : aloam::Pose(trajectory.back());
+    aloam::Pose odometry_pose = odometry_trajectory.empty() ? aloam::Pose() : aloam::Pose(odometry_trajectory.back());
     if (source->read(i, frame))
     {
       const aloam::PipelineOutput out = pipeline.process(frame.cloud, frame.stamp, frame.has_ring, frame.has_time);
@@ -378,6 +384,7 @@ int main(int argc, char** argv)
       if (out.status == aloam::PipelineStatus::kOk)
       {
         pose = out.mapping.pose;
+        odometry_pose = out.odometry.pose;
         odometry_ms.push_back(out.timings.odometry_ms);
         mapping_ms.push_back(out.timings.mapping_ms);
         update_ms.push_back(out.timings.update_ms);
@@ -410,6 +417,7 @@ int main(int argc, char** argv)
       ++rejected;
     }
     trajectory.push_back(pose.isometry());
+    odometry_trajectory.push_back(odometry_pose.isometry());
     stamps.push_back(frame.stamp);
     showProgress(i + 1, frames, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), tty);
   }
@@ -418,6 +426,11 @@ int main(int argc, char** argv)
   {
     aloam::eval::writeKittiPoses(opt.trajectory, trajectory);
     std::cout << "trajectory: " << opt.trajectory << " (" << trajectory.size() << " poses)\n";
+    if (!opt.odometry_trajectory.empty())
+    {
+      aloam::eval::writeKittiPoses(opt.odometry_trajectory, odometry_trajectory);
+      std::cout << "odometry trajectory: " << opt.odometry_trajectory << "\n";
+    }
     if (!opt.tum.empty())
     {
       aloam::eval::writeTumTrajectory(opt.tum, trajectory, stamps);

@@ -99,6 +99,11 @@ struct OdometryFrame
   /// The clouds still carry motion distortion that deskewing was asked to remove: the first sweep,
   /// whose motion is unknown. Mapping does not build its map from such clouds.
   bool distorted = false;
+  /// Odometry had trouble with the sweep: other starts tried, degraded or remapped.
+  bool hard() const
+  {
+    return hypotheses_tried || status == OdometryStatus::kDegraded || status == OdometryStatus::kRemapped;
+  }
   std::shared_ptr<const Cloud> corners;  ///< less sharp points
   std::shared_ptr<const Cloud> surfs;    ///< less flat points
   std::shared_ptr<const Cloud> full;     ///< every point
