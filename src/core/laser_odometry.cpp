@@ -353,7 +353,10 @@ OdometryFrame LaserOdometry::track(const std::shared_ptr<const FeatureSet>& feat
               solve(sharp_in, flat_in, candidate, config_.hypothesis_outer_iterations, config_.hypothesis_search_scale);
           // Along a degenerate direction a solve keeps its start, which for these starts is a guess, and a
           // wider search on a poorly constrained sweep wanders: only fully constrained solves count.
-          if (usable(c, candidate) && c.degenerate.empty() && (c.inlier_share > m.inlier_share || !usable(m, motion)))
+          // The prediction's own solve is kept unless another start clearly beats it (by hypothesis_min_gain):
+          // on ground alone a shifted start finds about as many inliers as the right one.
+          const double to_beat = m.inlier_share + (frame.hypothesis == 0 ? config_.hypothesis_min_gain : 0.0);
+          if (usable(c, candidate) && c.degenerate.empty() && (c.inlier_share > to_beat || !usable(m, motion)))
           {
             m = c;
             motion = candidate;

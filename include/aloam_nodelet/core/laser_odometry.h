@@ -60,6 +60,8 @@ struct LaserOdometryConfig
   /// and the start whose solve keeps the most inliers wins. false: one solve from the prediction (A-LOAM).
   bool motion_hypotheses = true;
   double hypothesis_min_inlier_share = 0.5;
+  /// Another start replaces the prediction's solve only with an inlier share this much higher.
+  double hypothesis_min_gain = 0.1;
   double hypothesis_yaw_deg = 20.0;
   double hypothesis_translation = 2.5;  ///< m; <= 0: no translation starts
   int hypothesis_outer_iterations = 4;
