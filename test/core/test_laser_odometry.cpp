@@ -594,6 +594,16 @@ TEST(LaserOdometryTest, DefaultElevationWindowKeepsHdl64AndFollowsTheBeamTable)
   EXPECT_EQ(on32.reach(kOuterRing).above, 1);
   EXPECT_EQ(on32.reach(kOuterRing).below, 1);
 
+  // config/VLP16.yaml and config/OS1_64.yaml keep two rings (measured better there): 3.5 and 1.2 deg.
+  const LaserOdometry vlp16_yaml = odometryWithTable(ts::preset("VLP16"), 3.5);
+  const LaserOdometry vlp16_default = odometryWithTable(ts::preset("VLP16"), window);
+  const LaserOdometry os1_yaml = odometryWithTable(ts::preset("OS1_64"), 1.2);
+  EXPECT_EQ(vlp16_yaml.reach(8).above, 2);
+  EXPECT_EQ(vlp16_yaml.reach(8).below, 2);
+  EXPECT_EQ(vlp16_default.reach(8).above, 1);
+  EXPECT_EQ(os1_yaml.reach(32).above, 2);
+  EXPECT_EQ(os1_yaml.reach(32).below, 2);
+
   const LaserOdometry no_table{ LaserOdometryConfig() };
   EXPECT_EQ(no_table.reach(10).above, nearby);
   EXPECT_EQ(no_table.reach(10).below, nearby);
