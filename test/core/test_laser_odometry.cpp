@@ -559,13 +559,14 @@ TEST(LaserOdometryTest, ElevationWindowReachesTheSameAngleOnDifferentSpacings)
               2.0 * reachAboveDeg(fine.elevationsDeg(), fine_off, kMiddleFine), 1e-9);
 }
 
-// The default window keeps A-LOAM's two rings on each side of every HDL-64 ring (both beam blocks, 1/3 and
-// 1/2 deg apart), and the rings of the other presets follow their spacing: one on an OS0-64 (1.43 deg),
-// two among a VLP-32C's central 1/3 deg beams and one among its outer beams. The outermost rings search
-// only inwards. Without a beam table the window falls back to nearby_scan.
-TEST(LaserOdometryTest, DefaultElevationWindowKeepsHdl64AndFollowsTheBeamTable)
+// The window of config/*.yaml (0.8 deg) keeps A-LOAM's two rings on each side of every HDL-64 ring (both beam blocks,
+// 1/3 and 1/2 deg apart), and the rings of the other presets follow their spacing: one on an OS0-64 (1.43 deg), two
+// among a VLP-32C's central 1/3 deg beams and one among its outer beams. The outermost rings search only inwards.
+// Without a beam table the window falls back to nearby_scan.
+TEST(LaserOdometryTest, ElevationWindowKeepsHdl64AndFollowsTheBeamTable)
 {
-  const double window = LaserOdometryConfig().nearby_elevation_deg;
+  constexpr double window = 0.8;
+  EXPECT_LE(LaserOdometryConfig().nearby_elevation_deg, 0.0) << "off by default (ring counting)";
   const int nearby = static_cast<int>(std::floor(LaserOdometryConfig().nearby_scan));
   const SensorModel hdl64 = ts::preset("HDL64");
   const LaserOdometry on64 = odometryWithTable(hdl64, window);
@@ -594,15 +595,11 @@ TEST(LaserOdometryTest, DefaultElevationWindowKeepsHdl64AndFollowsTheBeamTable)
   EXPECT_EQ(on32.reach(kOuterRing).above, 1);
   EXPECT_EQ(on32.reach(kOuterRing).below, 1);
 
-  // config/VLP16.yaml and config/OS1_64.yaml keep two rings (measured better there): 3.5 and 1.2 deg.
-  const LaserOdometry vlp16_yaml = odometryWithTable(ts::preset("VLP16"), 3.5);
-  const LaserOdometry vlp16_default = odometryWithTable(ts::preset("VLP16"), window);
-  const LaserOdometry os1_yaml = odometryWithTable(ts::preset("OS1_64"), 1.2);
-  EXPECT_EQ(vlp16_yaml.reach(8).above, 2);
-  EXPECT_EQ(vlp16_yaml.reach(8).below, 2);
-  EXPECT_EQ(vlp16_default.reach(8).above, 1);
-  EXPECT_EQ(os1_yaml.reach(32).above, 2);
-  EXPECT_EQ(os1_yaml.reach(32).below, 2);
+  // A VLP-16 (2 deg) and an OS1-64 (0.71 deg) reach one ring, where nearby_scan counts two (their YAML keeps
+  // ring counting).
+  EXPECT_EQ(odometryWithTable(ts::preset("VLP16"), window).reach(8).above, 1);
+  EXPECT_EQ(odometryWithTable(ts::preset("OS1_64"), window).reach(32).above, 1);
+  EXPECT_EQ(odometryWithTable(ts::preset("OS1_64"), 0.0).reach(32).above, nearby);
 
   const LaserOdometry no_table{ LaserOdometryConfig() };
   EXPECT_EQ(no_table.reach(10).above, nearby);

@@ -23,9 +23,12 @@ struct LaserOdometryConfig
   /// second and third of a plane come from the rings within nearby_elevation_deg of the nearest point's
   /// ring (see ringReach), resolved through ring_elevations_deg, so the reach in degrees is the same on a
   /// VLP-32C's 0.33 deg central beams, an OS0's 1.4 deg and a VLP-16's 2 deg (ring counting reaches 0.7 to
-  /// 4 deg). 0.8 deg resolves to the two rings of nearby_scan on each side of every HDL-64 ring. <= 0, or
-  /// no beam table, or a ring beyond the table: nearby_scan rings (A-LOAM).
-  double nearby_elevation_deg = 0.8;
+  /// 4 deg). 0.8 deg resolves to the two rings of nearby_scan on each side of every HDL-64 ring and to one
+  /// ring on sensors with beams 1.3 deg or more apart. Off (0) by default: against two rings it measured
+  /// better only by noise-sized margins on some sensors (HDL-32, OS0-64, VLP-32C on the simulated urban car)
+  /// and worse on others (VLP-16 hand-held, OS1-64 rotation drift); config/*.yaml switch it on where it
+  /// measured better or equal. <= 0, or no beam table, or a ring beyond the table: nearby_scan rings (A-LOAM).
+  double nearby_elevation_deg = 0.0;
   /// The sensor's beam elevations in degrees, ascending, index = ring (SensorModel::elevationsDeg()).
   /// Pipeline fills it from the registration's sensor model when it is empty.
   std::vector<double> ring_elevations_deg;
