@@ -71,7 +71,51 @@ std::vector<int> ringBegins(const Cloud& cloud)
   return begins;
 }
 
-LaserOdometry::LaserOdometry(LaserOdometryConfig config) : config_(config) {}
+std::vector<RingReach> ringReach(const std::vector<double>& e, double window_deg)
+{
+  const int n = static_cast<int>(e.size());
+  std::vector<RingReach> reach(e.size());
+  for (int r = 0; r < n; ++r)
+  {
+    RingReach& out = reach[static_cast<std::size_t>(r)];
+    out.above = r + 1 < n ? 1 : 0;
+    while (r + out.above + 1 < n && 0.5 * (e[r + out.above] + e[r + out.above + 1]) - e[r] <= window_deg)
+    {
+      ++out.above;
+    }
+    out.below = r > 0 ? 1 : 0;
+    while (r - out.below - 1 >= 0 && e[r] - 0.5 * (e[r - out.below] + e[r - out.below - 1]) <= window_deg)
+    {
+      ++out.below;
+    }
+  }
+  return reach;
+}
+
+LaserOdometry::LaserOdometry(LaserOdometryConfig config)
+{
+  setConfig(config);
+}
+
+void LaserOdometry::setConfig(const LaserOdometryConfig& config)
+{
+  config_ = config;
+  ring_reach_.clear();
+  if (config_.nearby_elevation_deg > 0.0)
+  {
+    ring_reach_ = ringReach(config_.ring_elevations_deg, config_.nearby_elevation_deg);
+  }
+}
+
+RingReach LaserOdometry::reach(int ring) const
+{
+  if (ring >= 0 && ring < static_cast<int>(ring_reach_.size()))
+  {
+    return ring_reach_[static_cast<std::size_t>(ring)];
+  }
+  const int nearby = static_cast<int>(std::floor(config_.nearby_scan));
+  return RingReach{ nearby, nearby };
+}
 
 void LaserOdometry::reset()
 {
@@ -111,7 +155,6 @@ bool LaserOdometry::matchEdge(const Point& p, const Pose& motion, double search_
 {
   const Cloud& last = *last_corners_;
   const auto threshold = static_cast<float>(config_.distance_sq_threshold * search_scale);
-  const int nearby = static_cast<int>(std::floor(config_.nearby_scan));
   const Point sel = transformPoint(motion, p);
   const int closest = corner_tree_.nearest(sel, threshold);
   if (closest < 0)
@@ -119,10 +162,11 @@ bool LaserOdometry::matchEdge(const Point& p, const Pose& motion, double search_
     return false;
   }
   const int ring = last.points[closest].ring;
+  const RingReach nearby = reach(ring);
   // Second point of the line: the nearest one on a neighbouring ring (not the same ring).
   float best = threshold;
-  const int above = nearestOnRings(corner_ring_trees_, sel, ring + 1, ring + nearby, best);
-  const int below = nearestOnRings(corner_ring_trees_, sel, ring - nearby, ring - 1, best);
+  const int above = nearestOnRings(corner_ring_trees_, sel, ring + 1, ring + nearby.above, best);
+  const int below = nearestOnRings(corner_ring_trees_, sel, ring - nearby.below, ring - 1, best);
   const int second = below >= 0 ? below : above;
   if (second < 0)
   {
@@ -143,7 +187,6 @@ bool LaserOdometry::matchPlane(const Point& p, const Pose& motion, double search
 {
   const Cloud& last = *last_surfs_;
   const auto threshold = static_cast<float>(config_.distance_sq_threshold * search_scale);
-  const int nearby = static_cast<int>(std::floor(config_.nearby_scan));
   const Point sel = transformPoint(motion, p);
   const int closest = surf_tree_.nearest(sel, threshold);
   if (closest < 0)
@@ -151,11 +194,12 @@ bool LaserOdometry::matchPlane(const Point& p, const Pose& motion, double search
     return false;
   }
   const int ring = last.points[closest].ring;
+  const RingReach nearby = reach(ring);
   // Plane through the closest point, the nearest other point on the same or a lower ring and the
   // nearest point on a higher ring.
   float low_bound = threshold, high_bound = threshold;
-  const int low = nearestOnRings(surf_ring_trees_, sel, ring - nearby, ring, low_bound, closest);
-  const int high = nearestOnRings(surf_ring_trees_, sel, ring + 1, ring + nearby, high_bound);
+  const int low = nearestOnRings(surf_ring_trees_, sel, ring - nearby.below, ring, low_bound, closest);
+  const int high = nearestOnRings(surf_ring_trees_, sel, ring + 1, ring + nearby.above, high_bound);
   if (low < 0 || high < 0)
   {
     return false;

@@ -12,10 +12,21 @@ double msSince(Clock::time_point start)
 {
   return std::chrono::duration<double, std::milli>(Clock::now() - start).count();
 }
+
+// Odometry resolves its elevation window through the registration's beam table unless given one.
+LaserOdometryConfig withBeamTable(const PipelineConfig& config)
+{
+  LaserOdometryConfig odometry = config.odometry;
+  if (odometry.ring_elevations_deg.empty())
+  {
+    odometry.ring_elevations_deg = config.registration.sensor.elevationsDeg();
+  }
+  return odometry;
+}
 }  // namespace
 
 Pipeline::Pipeline(const PipelineConfig& config)
-  : registration_(config.registration), odometry_(config.odometry), mapping_(config.mapping)
+  : registration_(config.registration), odometry_(withBeamTable(config)), mapping_(config.mapping)
 {
 }
 

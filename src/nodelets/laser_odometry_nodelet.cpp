@@ -3,6 +3,8 @@
 #include <chrono>
 #include <memory>
 #include <mutex>
+#include <string>
+#include <vector>
 
 #include <nav_msgs/Odometry.h>
 #include <nav_msgs/Path.h>
@@ -16,6 +18,7 @@
 #include <aloam_nodelet/LaserOdometryConfig.h>
 
 #include "aloam_nodelet/core/laser_odometry.h"
+#include "aloam_nodelet/core/sensor_model.h"
 #include "aloam_nodelet/ros/conversions.h"
 #include "aloam_nodelet/ros/stage_messages.h"
 #include "background_worker.h"
@@ -37,6 +40,7 @@ private:
   bool resetCb(std_srvs::Trigger::Request& request, std_srvs::Trigger::Response& response);
   void reconfigureCb(const LaserOdometryConfig& config);
   void resetLocked();
+  std::vector<double> beamTable(const ros::NodeHandle& pnh) const;
 
   std::mutex mutex_;  // guards the core, the path and the time bookkeeping
   std::unique_ptr<aloam::LaserOdometry> odometry_;
@@ -47,6 +51,8 @@ private:
   aloam::OdometryFrame last_frame_;  // for diagnostics (clouds not kept)
   std::size_t degraded_frames_ = 0;
   std::size_t remapped_frames_ = 0;
+  std::size_t hypotheses_tried_frames_ = 0;  // the prediction looked wrong, other starts were solved
+  std::size_t hypotheses_kept_frames_ = 0;   // ... and one of them was kept
   StageMonitor monitor_;
 
   // Indexing waits for mapping's answer to the frame (aft_mapped_to_init), at most index_wait_: until
@@ -62,6 +68,36 @@ private:
   std::unique_ptr<BackgroundWorker> indexer_;
 };
 
+std::vector<double> LaserOdometryNodelet::beamTable(const ros::NodeHandle& pnh) const
+{
+  // The same ring model as scan registration's (config/*.yaml sets it in both sections).
+  std::string sensor;
+  pnh.param<std::string>("sensor", sensor, "");
+  const int beams = boundedParam(pnh, getName(), "beams", 0, 0, 256);
+  if (beams > 0)
+  {
+    double min_deg = -15.0, max_deg = 15.0;
+    pnh.param("min_elevation_deg", min_deg, min_deg);
+    pnh.param("max_elevation_deg", max_deg, max_deg);
+    NODELET_INFO("ring neighbourhood through %d beams from %.2f to %.2f deg", beams, min_deg, max_deg);
+    return aloam::SensorModel::uniform(beams, min_deg, max_deg).elevationsDeg();
+  }
+  if (const auto model = aloam::SensorModel::fromPreset(sensor))
+  {
+    NODELET_INFO("ring neighbourhood through the beam table of %s", sensor.c_str());
+    return model->elevationsDeg();
+  }
+  if (!sensor.empty())
+  {
+    NODELET_ERROR("unknown sensor preset '%s': the ring neighbourhood counts nearby_scan rings", sensor.c_str());
+  }
+  else
+  {
+    NODELET_INFO("no ~sensor: the ring neighbourhood counts nearby_scan rings");
+  }
+  return {};
+}
+
 void LaserOdometryNodelet::onInit()
 {
   ros::NodeHandle& nh = getNodeHandle();
@@ -72,6 +108,7 @@ void LaserOdometryNodelet::onInit()
   aloam::LaserOdometryConfig config;
   pnh.param("constant_velocity", config.constant_velocity, config.constant_velocity);
   config.threads = boundedParam(pnh, name, "threads", config.threads, 1, 16);
+  config.ring_elevations_deg = beamTable(pnh);
   pnh.param<std::string>("world_frame", world_frame_, "camera_init");
   pnh.param<std::string>("child_frame", child_frame_, "laser_odom");
   path_max_poses_ = static_cast<std::size_t>(boundedParam(pnh, name, "path_max_poses", 10000, 1, 1'000'000));
@@ -110,6 +147,9 @@ void LaserOdometryNodelet::onInit()
                   s.add("degenerate (sensor frame)", aloam::describe(last_frame_.degenerate));
                   s.add("degraded frames", degraded_frames_);
                   s.add("remapped frames (partially degenerate)", remapped_frames_);
+                  s.add("hypotheses tried (frames)", hypotheses_tried_frames_);
+                  s.add("hypotheses kept (frames, another start won)", hypotheses_kept_frames_);
+                  s.addf("inlier share", "%.2f", last_frame_.inlier_share);
                   stamps_.report(s);
                   if (last_frame_.status == aloam::OdometryStatus::kDegraded)
                   {
@@ -141,6 +181,13 @@ void LaserOdometryNodelet::reconfigureCb(const LaserOdometryConfig& c)
   config.deskew = c.deskew;
   config.degeneracy_remap = c.degeneracy_remap;
   config.time_scaling = c.time_scaling;
+  config.nearby_elevation_deg = c.nearby_elevation_deg;
+  config.motion_hypotheses = c.motion_hypotheses;
+  config.hypothesis_min_inlier_share = c.hypothesis_min_inlier_share;
+  config.hypothesis_yaw_deg = c.hypothesis_yaw_deg;
+  config.hypothesis_translation = c.hypothesis_translation;
+  config.hypothesis_outer_iterations = c.hypothesis_outer_iterations;
+  config.hypothesis_search_scale = c.hypothesis_search_scale;
   odometry_->setConfig(config);  // applies from the next sweep
   aloam::StampCheckConfig stamp_config = stamps_.config();
   stamp_config.max_gap_sweeps = c.max_gap_sweeps;
@@ -247,6 +294,8 @@ bool LaserOdometryNodelet::process(const aloam::ros_io::StampedFeatureSet::Const
     NODELET_DEBUG_THROTTLE(kThrottleSeconds, "odometry partially degenerate, prior kept along %s",
                            aloam::describe(out->frame.degenerate).c_str());
   }
+  hypotheses_tried_frames_ += out->frame.hypotheses_tried ? 1 : 0;
+  hypotheses_kept_frames_ += out->frame.hypothesis > 0 ? 1 : 0;
   frame_pub_.publish(out);  // never modified after this
 
   const nav_msgs::Odometry odom = aloam::ros_io::toOdometryMsg(out->frame.pose, out->header, child_frame_);

@@ -32,6 +32,7 @@ constexpr const char* kUsage =
     "usage: aloam_offline (--kitti DIR | --bag FILE --topic TOPIC) --sensor PRESET --trajectory OUT.txt\n"
     "                     [--tum OUT.tum] [--map OUT.pcd] [--deskew] [--minimum-range M] [--max-frames N]\n"
     "                     [--keep-every N] [--baseline] [--odometry-trajectory OUT.txt]\n"
+    "                     [--nearby-elevation-deg DEG]\n"
     "\n"
     "  --kitti DIR        KITTI odometry sequence folder: DIR/velodyne/*.bin (+ DIR/times.txt)\n"
     "  --bag FILE         rosbag with sensor_msgs/PointCloud2 on --topic\n"
@@ -49,7 +50,10 @@ constexpr const char* kUsage =
     "  --keep-every N     use only every Nth sweep (0, N, 2N, ...) with its real stamp, as behind a throttle\n"
     "  --baseline         the handling of degeneracy and time of commit 81f6493 (A-LOAM-like): a weak direction\n"
     "                     keeps the whole prediction, and the last motion is the prediction and the deskew\n"
-    "                     motion whatever the time between stamps\n"
+    "                     motion whatever the time between stamps, and odometry's ring neighbourhood counts\n"
+    "                     rings (nearby_scan) instead of degrees\n"
+    "  --nearby-elevation-deg DEG\n"
+    "                     odometry's ring neighbourhood in degrees of elevation (0: nearby_scan rings)\n"
     "  --odometry-min-constraint X, --mapping-min-constraint X\n"
     "                     the stages' min_constraint (directions weaker than X are degenerate)\n";
 
@@ -59,7 +63,7 @@ struct Options
   bool deskew = false;
   bool baseline = false;
   std::size_t keep_every = 1;
-  std::optional<double> odometry_min_constraint, mapping_min_constraint;
+  std::optional<double> odometry_min_constraint, mapping_min_constraint, nearby_elevation_deg;
   std::optional<double> minimum_range;
   double kitti_vertical_correction = aloam::io::kKittiVerticalCorrectionDeg;
   std::size_t max_frames = 0;
@@ -246,6 +250,11 @@ bool parse(int argc, char** argv, Options& o)
       value(number);
       o.mapping_min_constraint = std::stod(number);
     }
+    else if (arg == "--nearby-elevation-deg")
+    {
+      value(number);
+      o.nearby_elevation_deg = std::stod(number);
+    }
     else if (arg == "--keep-every")
     {
       value(number);
@@ -336,8 +345,13 @@ int main(int argc, char** argv)
     config.odometry.degeneracy_remap = false;
     config.odometry.time_scaling = false;
     config.odometry.motion_hypotheses = false;
+    config.odometry.nearby_elevation_deg = 0.0;
     config.mapping.degeneracy_remap = false;
     config.mapping.hard_frame_outer_iterations = 0;
+  }
+  if (opt.nearby_elevation_deg)
+  {
+    config.odometry.nearby_elevation_deg = *opt.nearby_elevation_deg;
   }
 
   std::unique_ptr<FrameSource> source;

@@ -513,3 +513,99 @@ TEST(LaserOdometryTest, HypothesesNotTriedWhenThePredictionHolds)
 }
 
 }  // namespace aloam
+
+namespace aloam
+{
+namespace
+{
+// Elevation reach of the rings searched above ring `ring` of `elevations` (degrees).
+double reachAboveDeg(const std::vector<double>& elevations, const LaserOdometry& odometry, int ring)
+{
+  return elevations[static_cast<std::size_t>(ring + odometry.reach(ring).above)] -
+         elevations[static_cast<std::size_t>(ring)];
+}
+
+LaserOdometry odometryWithTable(const SensorModel& sensor, double window_deg)
+{
+  LaserOdometryConfig config;
+  config.ring_elevations_deg = sensor.elevationsDeg();
+  config.nearby_elevation_deg = window_deg;
+  return LaserOdometry(config);
+}
+}  // namespace
+
+// The elevation window reaches the same angle on a fine and a coarse beam spacing (0.2 and 0.4 deg: 6 and
+// 3 rings, 1.2 deg each), where counting rings (nearby_scan) reaches twice as far on the coarse one.
+TEST(LaserOdometryTest, ElevationWindowReachesTheSameAngleOnDifferentSpacings)
+{
+  const SensorModel fine = SensorModel::uniform(101, -10.0, 10.0);
+  const SensorModel coarse = SensorModel::uniform(51, -10.0, 10.0);
+  constexpr double kWindowDeg = 1.1;
+  constexpr int kMiddleFine = 50, kMiddleCoarse = 25;
+  const LaserOdometry fine_on = odometryWithTable(fine, kWindowDeg);
+  const LaserOdometry coarse_on = odometryWithTable(coarse, kWindowDeg);
+  EXPECT_EQ(fine_on.reach(kMiddleFine).above, 6);
+  EXPECT_EQ(fine_on.reach(kMiddleFine).below, 6);
+  EXPECT_EQ(coarse_on.reach(kMiddleCoarse).above, 3);
+  EXPECT_EQ(coarse_on.reach(kMiddleCoarse).below, 3);
+  EXPECT_NEAR(reachAboveDeg(fine.elevationsDeg(), fine_on, kMiddleFine),
+              reachAboveDeg(coarse.elevationsDeg(), coarse_on, kMiddleCoarse), 1e-9);
+
+  const LaserOdometry fine_off = odometryWithTable(fine, 0.0);
+  const LaserOdometry coarse_off = odometryWithTable(coarse, 0.0);
+  EXPECT_EQ(fine_off.reach(kMiddleFine).above, 2);
+  EXPECT_EQ(coarse_off.reach(kMiddleCoarse).above, 2);
+  EXPECT_NEAR(reachAboveDeg(coarse.elevationsDeg(), coarse_off, kMiddleCoarse),
+              2.0 * reachAboveDeg(fine.elevationsDeg(), fine_off, kMiddleFine), 1e-9);
+}
+
+// The window of config/*.yaml (0.8 deg) keeps A-LOAM's two rings on each side of every HDL-64 ring (both beam blocks,
+// 1/3 and 1/2 deg apart), and the rings of the other presets follow their spacing: one on an OS0-64 (1.43 deg), two
+// among a VLP-32C's central 1/3 deg beams and one among its outer beams. The outermost rings search only inwards.
+// Without a beam table the window falls back to nearby_scan.
+TEST(LaserOdometryTest, ElevationWindowKeepsHdl64AndFollowsTheBeamTable)
+{
+  constexpr double window = 0.8;
+  EXPECT_LE(LaserOdometryConfig().nearby_elevation_deg, 0.0) << "off by default (ring counting)";
+  const int nearby = static_cast<int>(std::floor(LaserOdometryConfig().nearby_scan));
+  const SensorModel hdl64 = ts::preset("HDL64");
+  const LaserOdometry on64 = odometryWithTable(hdl64, window);
+  for (int r = nearby; r + nearby < hdl64.numRings(); ++r)
+  {
+    EXPECT_EQ(on64.reach(r).above, nearby) << "ring " << r;
+    EXPECT_EQ(on64.reach(r).below, nearby) << "ring " << r;
+  }
+  EXPECT_EQ(on64.reach(0).below, 0);
+  EXPECT_EQ(on64.reach(hdl64.numRings() - 1).above, 0);
+
+  const SensorModel os0 = ts::preset("OS0_64");
+  const LaserOdometry on_os0 = odometryWithTable(os0, window);
+  for (int r = 1; r + 1 < os0.numRings(); ++r)
+  {
+    EXPECT_EQ(on_os0.reach(r).above, 1) << "ring " << r;
+    EXPECT_EQ(on_os0.reach(r).below, 1) << "ring " << r;
+  }
+
+  const SensorModel vlp32c = ts::preset("VLP32C");
+  const LaserOdometry on32 = odometryWithTable(vlp32c, window);
+  constexpr int kCentralRing = 16;  // -1.333 deg, 1/3 deg from its neighbours
+  constexpr int kOuterRing = 1;     // -15.6 deg, 9.4 and 4.3 deg from its neighbours
+  EXPECT_EQ(on32.reach(kCentralRing).above, 2);
+  EXPECT_EQ(on32.reach(kCentralRing).below, 2);
+  EXPECT_EQ(on32.reach(kOuterRing).above, 1);
+  EXPECT_EQ(on32.reach(kOuterRing).below, 1);
+
+  // A VLP-16 (2 deg) and an OS1-64 (0.71 deg) reach one ring, where nearby_scan counts two (their YAML keeps
+  // ring counting).
+  EXPECT_EQ(odometryWithTable(ts::preset("VLP16"), window).reach(8).above, 1);
+  EXPECT_EQ(odometryWithTable(ts::preset("OS1_64"), window).reach(32).above, 1);
+  EXPECT_EQ(odometryWithTable(ts::preset("OS1_64"), 0.0).reach(32).above, nearby);
+
+  const LaserOdometry no_table{ LaserOdometryConfig() };
+  EXPECT_EQ(no_table.reach(10).above, nearby);
+  EXPECT_EQ(no_table.reach(10).below, nearby);
+  // A ring beyond the table (a driver's ring field larger than the model) counts rings too.
+  EXPECT_EQ(on_os0.reach(os0.numRings() + 3).above, nearby);
+}
+
+}  // namespace aloam

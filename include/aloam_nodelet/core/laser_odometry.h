@@ -19,6 +19,19 @@ struct LaserOdometryConfig
   int outer_iterations = 2;             ///< correspondence searches per sweep, each followed by a solve
   double distance_sq_threshold = 25.0;  ///< nearest neighbour farther than this (m^2) is no match
   double nearby_scan = 2.5;             ///< rings searched on each side for the second/third point
+  /// The neighbourhood on neighbouring rings as an elevation window: the second point of a line and the
+  /// second and third of a plane come from the rings within nearby_elevation_deg of the nearest point's
+  /// ring (see ringReach), resolved through ring_elevations_deg, so the reach in degrees is the same on a
+  /// VLP-32C's 0.33 deg central beams, an OS0's 1.4 deg and a VLP-16's 2 deg (ring counting reaches 0.7 to
+  /// 4 deg). 0.8 deg resolves to the two rings of nearby_scan on each side of every HDL-64 ring and to one
+  /// ring on sensors with beams 1.3 deg or more apart. Off (0) by default: against two rings it measured
+  /// better only by noise-sized margins on some sensors (HDL-32, OS0-64, VLP-32C on the simulated urban car)
+  /// and worse on others (VLP-16 hand-held, OS1-64 rotation drift); config/*.yaml switch it on where it
+  /// measured better or equal. <= 0, or no beam table, or a ring beyond the table: nearby_scan rings (A-LOAM).
+  double nearby_elevation_deg = 0.0;
+  /// The sensor's beam elevations in degrees, ascending, index = ring (SensorModel::elevationsDeg()).
+  /// Pipeline fills it from the registration's sensor model when it is empty.
+  std::vector<double> ring_elevations_deg;
   /// Correct motion within the sweep (needs per-point time, from the point field or the azimuth): each
   /// point is moved by the velocity times its time in the sweep. Sources that deliver keyframes or clouds
   /// already deskewed (or with no meaningful intra-sweep time) set this false: the clouds are then taken
@@ -70,6 +83,19 @@ struct LaserOdometryConfig
   int threads = 2;  ///< threads sharing the correspondence search (results do not depend on it)
 };
 
+/// Rings searched below and above a ring for the points that complete a match.
+struct RingReach
+{
+  int below = 0;
+  int above = 0;
+};
+
+/// For every ring of the beam table `elevations_deg` (ascending, degrees; index = ring), the rings below
+/// and above it within `window_deg`: a neighbouring ring counts when the boundary of its elevation cell
+/// nearest to the ring (the midpoint between it and the next ring inwards) lies within the window, so the
+/// window covers the cells of the rings it reaches. At least one ring on each side that has one.
+std::vector<RingReach> ringReach(const std::vector<double>& elevations_deg, double window_deg);
+
 enum class OdometryStatus
 {
   kInitialized,  ///< first sweep: pose is identity, nothing to match yet
@@ -117,7 +143,9 @@ public:
   explicit LaserOdometry(LaserOdometryConfig config = {});
 
   const LaserOdometryConfig& config() const { return config_; }
-  void setConfig(const LaserOdometryConfig& config) { config_ = config; }
+  void setConfig(const LaserOdometryConfig& config);
+  /// Rings searched on each side of `ring` (from nearby_elevation_deg, or nearby_scan).
+  RingReach reach(int ring) const;
 
   /// Matches `features` against the previous sweep and returns the new pose. The frame shares the
   /// clouds of `features` when no deskewing is done (no copy). track() then indexLast().
@@ -156,8 +184,9 @@ private:
   };
 
   LaserOdometryConfig config_;
-  Pose pose_;    // world <- current sweep end
-  Pose motion_;  // last sweep end <- current sweep end (the constant-velocity prior)
+  std::vector<RingReach> ring_reach_;  // per ring of config_.ring_elevations_deg; empty: nearby_scan
+  Pose pose_;                          // world <- current sweep end
+  Pose motion_;                        // last sweep end <- current sweep end (the constant-velocity prior)
   std::shared_ptr<const Cloud> last_corners_;
   std::shared_ptr<const Cloud> last_surfs_;
   bool last_distorted_ = false;  // the previous sweep's clouds could not be deskewed
