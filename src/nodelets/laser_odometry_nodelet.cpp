@@ -188,6 +188,7 @@ void LaserOdometryNodelet::reconfigureCb(const LaserOdometryConfig& c)
   config.hypothesis_translation = c.hypothesis_translation;
   config.hypothesis_outer_iterations = c.hypothesis_outer_iterations;
   config.hypothesis_search_scale = c.hypothesis_search_scale;
+  config.hypothesis_min_gain = c.hypothesis_min_gain;
   odometry_->setConfig(config);  // applies from the next sweep
   aloam::StampCheckConfig stamp_config = stamps_.config();
   stamp_config.max_gap_sweeps = c.max_gap_sweeps;
