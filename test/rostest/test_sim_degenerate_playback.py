@@ -24,12 +24,14 @@ import aloam_rostest_utils as u
 DURATION_S = 4.0
 SEED = 3
 # Measured through the pipeline with per-direction remapping (issue 11, seed 3): the corridor
-# estimate ends 1.28 m off after 19.5 m (9.43 m with the old fallback), heading error at most 11.1 deg;
-# the field ends 14.21 m off (16.21 m before), heading error at most 42.3 deg. Degraded frames are now 0
+# estimate ends 1.57 m off after 19.5 m (1.28 m before mapping searched hard frames longer, 9.43 m with the
+# old fallback), heading error at most 11.1 deg; the field ends 14.21 m off (16.21 m before; 30.2 m while
+# any motion hypothesis with more inliers replaced the prediction, which hypothesis_min_gain stopped),
+# heading error at most 42.1 deg. Degraded frames are now 0
 # in both, remapped frames 34 (odometry) / 38 (mapping) in the corridor, 21 / 38 in the field.
 # Bounds about 1.5x:     max position error (m)   max heading error (deg)
 BOUNDS = {
-    "corridor": (2.0, 17.0),
+    "corridor": (2.4, 17.0),
     "field": (21.0, 63.0),
 }
 
