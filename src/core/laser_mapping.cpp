@@ -56,6 +56,8 @@ void LaserMapping::reset()
   map_.clear();
   submap_ready_ = false;
   pending_insert_ = false;
+  held_first_.reset();
+  pending_first_ = false;
   correction_ = Pose();
   evicted_total_ = 0;
 }
@@ -140,10 +142,15 @@ MatchSolveResult LaserMapping::solve(Pose& pose, int outer_iterations, MappingRe
 
 void LaserMapping::insert(const Pose& pose)
 {
+  insertClouds(corner_stack_, surf_stack_, pose);
+}
+
+void LaserMapping::insertClouds(const Cloud& corners, const Cloud& surfs, const Pose& pose)
+{
   Cloud world;
-  for (const bool corners : { true, false })
+  for (const bool is_corners : { true, false })
   {
-    const Cloud& stack = corners ? corner_stack_ : surf_stack_;
+    const Cloud& stack = is_corners ? corners : surfs;
     world.clear();
     world.points.reserve(stack.size());
     for (const Point& p : stack.points)
@@ -151,8 +158,50 @@ void LaserMapping::insert(const Pose& pose)
       world.points.push_back(transformPoint(pose, p));
     }
     // The map merges the points into its voxels (the leaf sizes of the configuration).
-    corners ? map_.insertCorners(world) : map_.insertSurfs(world);
+    is_corners ? map_.insertCorners(world) : map_.insertSurfs(world);
   }
+}
+
+void LaserMapping::releaseHeldFirst(const OdometryFrame& frame)
+{
+  const HeldSweep held = *held_first_;
+  held_first_.reset();
+  const double dt = frame.stamp - held.stamp;
+  if (!(dt > 0.0) || frame.status == OdometryStatus::kInitialized)
+  {
+    return;  // no motion to deskew with: the sweep stays out of the map
+  }
+  // The held sweep lasted as long as its latest point time; the next sweep's motion spans dt.
+  double sweep = 0.0;
+  for (const auto& cloud : { held.corners, held.surfs })
+  {
+    if (cloud)
+    {
+      for (const Point& p : cloud->points)
+      {
+        sweep = std::max(sweep, static_cast<double>(p.time));
+      }
+    }
+  }
+  const Pose within = frame.motion.scaled(sweep / dt);
+  Cloud deskewed;
+  for (const bool is_corners : { true, false })
+  {
+    const auto& in = is_corners ? held.corners : held.surfs;
+    Cloud& out = is_corners ? first_corners_ : first_surfs_;
+    out.clear();
+    if (!in)
+    {
+      continue;
+    }
+    if (sweep > 0.0)
+    {
+      deskewToSweepEnd(*in, within, sweep, deskewed);
+    }
+    voxelDownsample(sweep > 0.0 ? deskewed : *in, is_corners ? config_.corner_leaf_size : config_.surf_leaf_size, out);
+  }
+  first_pose_ = held.pose;
+  pending_first_ = true;
 }
 
 MappingResult LaserMapping::process(const OdometryFrame& frame)
@@ -230,15 +279,28 @@ MappingResult LaserMapping::registerFrame(const OdometryFrame& frame)
   correction_ = pose * frame.pose.inverse();
   result.pose = pose;
   result.correction = correction_;
-  // A distorted first sweep would warp the map every later sweep registers against: the map starts
-  // with the first sweep whose motion is known.
+  // A distorted first sweep would warp the map every later sweep registers against: it waits for the
+  // next sweep's motion (deskew_first_late), or the map starts with the first sweep whose motion is known.
   pending_insert_ = !(frame.distorted && map_.cubeCount() == 0 && !config_.insert_distorted_first);
   pending_pose_ = pose;
+  if (held_first_ && pending_insert_)
+  {
+    releaseHeldFirst(frame);
+  }
+  else if (!pending_insert_ && config_.deskew_first_late)
+  {
+    held_first_ = HeldSweep{ frame.corners, frame.surfs, pose, frame.stamp };
+  }
   return result;
 }
 
 void LaserMapping::updateMap(MappingResult& result)
 {
+  if (pending_first_)
+  {
+    insertClouds(first_corners_, first_surfs_, first_pose_);
+    pending_first_ = false;
+  }
   if (pending_insert_)
   {
     insert(pending_pose_);

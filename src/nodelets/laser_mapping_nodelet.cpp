@@ -489,6 +489,7 @@ void LaserMappingNodelet::reconfigureCb(const LaserMappingConfig& c)
   config.plane_neighbours = c.plane_neighbours;
   config.eviction_radius = c.eviction_radius;
   config.degeneracy_remap = c.degeneracy_remap;
+  config.deskew_first_late = c.deskew_first_late;
   const std::size_t points_before = mapping_->map().cornerCount() + mapping_->map().surfCount();
   mapping_->setConfig(config);
   NODELET_INFO("reconfigured: cube %.1f m, leaves %.2f / %.2f m, %d x %d iterations; map %zu points (was %zu)",

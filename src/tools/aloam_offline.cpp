@@ -348,6 +348,7 @@ int main(int argc, char** argv)
     config.odometry.nearby_elevation_deg = 0.0;
     config.mapping.degeneracy_remap = false;
     config.mapping.hard_frame_outer_iterations = 0;
+    config.mapping.deskew_first_late = false;
   }
   if (opt.nearby_elevation_deg)
   {

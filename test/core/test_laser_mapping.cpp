@@ -272,4 +272,32 @@ TEST(LaserMappingTest, SetConfigRebucketsAndResetClears)
   EXPECT_NEAR(ts::translationError(mapping.correction(), Pose()), 0.0, kExactMetres);
 }
 
+// The first sweep of a deskewed drive (its motion unknown, so still distorted) goes into the map with the
+// second, deskewed with the second sweep's motion (deskew_first_late): after two sweeps the map holds more
+// than the second sweep alone, and the drive tracks at least as well as without it (14-sweep HDL-64 drive:
+// worst 0.029 m with it, 0.036 m without).
+TEST(LaserMappingTest, FirstSweepEntersTheMapDeskewedLate)
+{
+  const SensorModel sensor = ts::preset("HDL64");
+  DriveErrors with_first, without_first;
+  for (const bool late : { true, false })
+  {
+    PipelineConfig config = pipelineConfig(sensor, true);
+    config.mapping.deskew_first_late = late;
+    Pipeline pipeline(config);
+    (late ? with_first : without_first) = runDrive(pipeline, sensor, shortDrive(), kShortDriveSweeps, true);
+  }
+  const MappingResult& on = with_first.results[1];
+  const MappingResult& off = without_first.results[1];
+  std::printf(
+      "[ measured ] map after two sweeps: %zu + %zu points with the first sweep, %zu + %zu without; "
+      "worst error %.4f m with, %.4f m without\n",
+      on.map_corners, on.map_surfs, off.map_corners, off.map_surfs, maxOf(with_first.mapped),
+      maxOf(without_first.mapped));
+  EXPECT_EQ(without_first.results[0].map_surfs, 0u) << "without it the distorted first sweep stays out";
+  EXPECT_GT(on.map_surfs, off.map_surfs);
+  EXPECT_GT(on.map_corners, off.map_corners);
+  EXPECT_LE(maxOf(with_first.mapped), maxOf(without_first.mapped) + 0.005);
+}
+
 }  // namespace aloam

@@ -2,6 +2,8 @@
 #pragma once
 
 #include <cstddef>
+#include <memory>
+#include <optional>
 #include <vector>
 
 #include <Eigen/Eigenvalues>
@@ -35,6 +37,10 @@ struct LaserMappingConfig
   /// it is not noise: test_laser_mapping's 14-sweep HDL-64 drive at 10 m/s ends 0.265 m off with it
   /// (0.037 m odometry; bound 0.05 m), as the undeskewed first sweep warps the map.
   bool insert_distorted_first = false;
+  /// true: that distorted first sweep is held and goes into the map with the next sweep, deskewed then
+  /// with the motion odometry solved for that next sweep (constant velocity across the two), so the map
+  /// starts with the first sweep after all. false: it never enters the map (81f6493, --baseline).
+  bool deskew_first_late = true;
   int line_neighbours = 5;  ///< map points fitted per edge point (A-LOAM: 5)
   /// Farthest fitted neighbour (m^2), lines and planes. A-LOAM uses 1 m^2; with 0.8 m plane voxels five
   /// neighbours often lie just beyond 1 m, and 2 m^2 measured better on KITTI 00 (drift 1.28 % vs 1.30 %).
@@ -134,6 +140,22 @@ private:
   Cloud corner_stack_, surf_stack_;
   Pose pending_pose_;
   bool pending_insert_ = false;
+  // A distorted first sweep waiting for the next sweep's motion (deskew_first_late), and, once that is
+  // known, its deskewed and downsampled clouds waiting for updateMap().
+  struct HeldSweep
+  {
+    std::shared_ptr<const Cloud> corners, surfs;
+    Pose pose;
+    double stamp = 0.0;
+  };
+  std::optional<HeldSweep> held_first_;
+  Cloud first_corners_, first_surfs_;
+  Pose first_pose_;
+  bool pending_first_ = false;
+
+  void insertClouds(const Cloud& corners, const Cloud& surfs, const Pose& pose);
+  /// Deskews the held first sweep with `frame`'s motion and queues it for updateMap().
+  void releaseHeldFirst(const OdometryFrame& frame);
 
   /// The k nearest map points of a query within a radius, their centroid and principal axes.
   struct Neighbourhood
