@@ -25,20 +25,7 @@ import matplotlib
 matplotlib.use("Agg")  # no display needed
 import matplotlib.pyplot as plt  # noqa: E402 (after the backend choice)
 
-from aloam_poses import quat_to_rot  # noqa: E402 (beside this script)
-
-
-def read_kitti(path):
-    rows = np.loadtxt(path, ndmin=2)
-    poses = np.tile(np.eye(4), (rows.shape[0], 1, 1))
-    poses[:, :3, :] = rows.reshape(-1, 3, 4)
-    return poses
-
-
-def write_kitti(path, poses):
-    with open(path, "w") as out:
-        for m in poses:
-            out.write(" ".join("%.9e" % v for v in m[:3, :].reshape(-1)) + "\n")
+from aloam_poses import quat_to_rot, read_kitti, write_kitti  # noqa: E402 (beside this script)
 
 
 def read_tum(path):

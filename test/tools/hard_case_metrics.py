@@ -11,41 +11,22 @@
       MIN_STEP_M (C: the smallest cosine between estimated and true step among them).
 """
 import math
+import os
 import sys
 
 import numpy as np
 
+# The pose helpers of the demo report (scripts/aloam_poses.py).
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scripts"))
+from aloam_poses import quat_to_rot, read_kitti, write_kitti  # noqa: E402
+
 MIN_STEP_M = 0.05
-
-
-def read_kitti(path):
-    poses = []
-    with open(path) as f:
-        for line in f:
-            values = [float(v) for v in line.split()]
-            if len(values) != 12:
-                continue
-            m = np.eye(4)
-            m[:3, :] = np.array(values).reshape(3, 4)
-            poses.append(m)
-    return poses
-
-
-def write_kitti(path, poses):
-    with open(path, "w") as f:
-        for m in poses:
-            f.write(" ".join("%.9e" % v for v in m[:3, :].reshape(-1)) + "\n")
 
 
 def pose_to_matrix(pose):
     q = pose.orientation
-    x, y, z, w = q.x, q.y, q.z, q.w
     m = np.eye(4)
-    m[:3, :3] = np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-    ])
+    m[:3, :3] = quat_to_rot(q.x, q.y, q.z, q.w)
     m[:3, 3] = [pose.position.x, pose.position.y, pose.position.z]
     return m
 
