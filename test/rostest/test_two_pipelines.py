@@ -28,10 +28,11 @@ MAX_DIFF_FROM_SINGLE_M = 1e-6
 STAMP_SHIFT_S = 500.0
 
 
-def offline(bag, sensor, out):
+def offline(bag, sensor, out, nearby_elevation_deg):
+    """aloam_offline with the settings of the pipeline's YAML that differ from the code's defaults."""
     subprocess.run([u.devel_tool("aloam_offline"), "--bag", bag, "--topic", "velodyne_points", "--sensor", sensor,
-                    "--deskew", "--trajectory", out], check=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                   timeout=120)
+                    "--deskew", "--nearby-elevation-deg", str(nearby_elevation_deg), "--trajectory", out],
+                   check=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE, timeout=120)
     return u.read_kitti(out)
 
 
@@ -48,7 +49,8 @@ class TestTwoPipelines(u.ScratchTestCase):
                 for c in clouds:
                     c.header.stamp += rospy.Duration(STAMP_SHIFT_S)
             inputs[ns] = dict(sensor=sensor, bag=bag, gt=gt, clouds=clouds,
-                              single=offline(bag, sensor, os.path.join(directory, "single.txt")))
+                              single=offline(bag, sensor, os.path.join(directory, "single.txt"),
+                                             rospy.get_param("/%s/laser_odometry/nearby_elevation_deg" % ns, 0.0)))
             self.assertEqual(rospy.get_param("/%s/scan_registration/sensor" % ns), sensor,
                              "%s has its own parameters" % ns)
 
