@@ -189,13 +189,7 @@ void LaserMappingNodelet::onInit()
                     s.add("odometry restarts (map reset)", odometry_restarts_);
                   }
                   std::lock_guard<std::mutex> lock(core_mutex_);
-                  s.add("edge matches", last_result_.corner_matches);
-                  s.add("plane matches", last_result_.plane_matches);
-                  s.addf("constraint (degenerate below min)", "%.1f", last_result_.constraint);
-                  s.add("degenerate directions", last_result_.degenerate.size());
-                  s.add("degenerate (sensor frame)", aloam::describe(last_result_.degenerate));
-                  s.add("degraded frames", degraded_frames_);
-                  s.add("remapped frames (partially degenerate)", remapped_frames_);
+                  addMatchDiagnostics(s, last_result_, degraded_frames_, remapped_frames_);
                   s.add("map edge points", last_result_.map_corners);
                   s.add("map plane points", last_result_.map_surfs);
                   s.add("map cubes", last_result_.cubes);

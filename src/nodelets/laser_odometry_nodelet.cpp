@@ -140,13 +140,7 @@ void LaserOdometryNodelet::onInit()
                 [this](diagnostic_updater::DiagnosticStatusWrapper& s)
                 {
                   std::lock_guard<std::mutex> lock(mutex_);
-                  s.add("edge matches", last_frame_.corner_matches);
-                  s.add("plane matches", last_frame_.plane_matches);
-                  s.addf("constraint (degenerate below min)", "%.1f", last_frame_.constraint);
-                  s.add("degenerate directions", last_frame_.degenerate.size());
-                  s.add("degenerate (sensor frame)", aloam::describe(last_frame_.degenerate));
-                  s.add("degraded frames", degraded_frames_);
-                  s.add("remapped frames (partially degenerate)", remapped_frames_);
+                  addMatchDiagnostics(s, last_frame_, degraded_frames_, remapped_frames_);
                   s.add("hypotheses tried (frames)", hypotheses_tried_frames_);
                   s.add("hypotheses kept (frames, another start won)", hypotheses_kept_frames_);
                   s.addf("inlier share", "%.2f", last_frame_.inlier_share);

@@ -10,6 +10,7 @@
 #include <ros/node_handle.h>
 #include <ros/time.h>
 
+#include "aloam_nodelet/core/pose_solver.h"
 #include "aloam_nodelet/core/stamp_check.h"
 #include "param_utils.h"
 
@@ -91,5 +92,20 @@ private:
   aloam::StampCheck check_;
   std::array<ros::WallTime, 6> last_warning_{};  // indexed by StampVerdict
 };
+
+/// The match and degeneracy figures odometry and mapping both report for their last frame (one wording for
+/// both stages, so tools and tests read them alike).
+template <typename Frame>
+void addMatchDiagnostics(diagnostic_updater::DiagnosticStatusWrapper& s, const Frame& last, std::size_t degraded,
+                         std::size_t remapped)
+{
+  s.add("edge matches", last.corner_matches);
+  s.add("plane matches", last.plane_matches);
+  s.addf("constraint (degenerate below min)", "%.1f", last.constraint);
+  s.add("degenerate directions", last.degenerate.size());
+  s.add("degenerate (sensor frame)", aloam::describe(last.degenerate));
+  s.add("degraded frames", degraded);
+  s.add("remapped frames (partially degenerate)", remapped);
+}
 
 }  // namespace aloam_nodelet
