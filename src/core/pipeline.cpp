@@ -1,6 +1,8 @@
 #include "aloam_nodelet/core/pipeline.h"
 
 #include <chrono>
+#include <cmath>
+#include <cstdint>
 
 namespace aloam
 {
@@ -26,7 +28,10 @@ LaserOdometryConfig withBeamTable(const PipelineConfig& config)
 }  // namespace
 
 Pipeline::Pipeline(const PipelineConfig& config)
-  : registration_(config.registration), odometry_(withBeamTable(config)), mapping_(config.mapping)
+  : registration_(config.registration)
+  , odometry_(withBeamTable(config))
+  , mapping_(config.mapping)
+  , stamps_(config.stamps)
 {
 }
 
@@ -34,11 +39,28 @@ void Pipeline::reset()
 {
   odometry_.reset();
   mapping_.reset();
+  stamps_.reset();
 }
 
 PipelineOutput Pipeline::process(const Cloud& cloud, double stamp, bool has_ring, bool has_time)
 {
   PipelineOutput out;
+  out.stamp_verdict = stamps_.check(static_cast<std::int64_t>(std::llround(stamp * 1e9)));
+  const StampAction action = actionFor(out.stamp_verdict);
+  if (!action.process)
+  {
+    out.status = PipelineStatus::kDroppedStamp;
+    return out;
+  }
+  if (action.reset)
+  {
+    odometry_.reset();
+    mapping_.reset();
+  }
+  if (action.restart_motion)
+  {
+    odometry_.resetMotionPrior();
+  }
   auto start = Clock::now();
   auto features = std::make_shared<FeatureSet>();
   const bool usable = registration_.process(cloud, stamp, has_ring, has_time, *features);

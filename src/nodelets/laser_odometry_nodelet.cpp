@@ -229,33 +229,33 @@ void LaserOdometryNodelet::mappedCb(const nav_msgs::Odometry::ConstPtr& msg)
 bool LaserOdometryNodelet::admit(const ros::Time& stamp)
 {
   const aloam::StampVerdict verdict = stamps_.check(stamp);
-  switch (verdict)
+  const aloam::StampAction action = aloam::actionFor(verdict);
+  if (!action.process)
   {
-    case aloam::StampVerdict::kDuplicate:
-    case aloam::StampVerdict::kOutOfOrder:
-      if (stamps_.warningDue(verdict))
-      {
-        NODELET_WARN_STREAM(stamps_.dropMessage(verdict, "laser_features", stamp));
-      }
-      return false;
-    case aloam::StampVerdict::kJumpedBack:
-      NODELET_WARN("time jumped back %.3f s (looping bag?): odometry reset", -stamps_.lastStep());
-      resetLocked();
-      stamps_.check(stamp);  // this sweep starts the new run
-      return true;
-    case aloam::StampVerdict::kGap:
-      if (stamps_.warningDue(verdict))
-      {
-        NODELET_WARN(
-            "%.3f s since the last sweep (more than %.0f periods): motion prior reset, the sweep is "
-            "matched from rest (%zu gaps so far)",
-            stamps_.lastStep(), stamps_.config().max_gap_sweeps, stamps_.counts().gaps);
-      }
-      odometry_->resetMotionPrior();
-      return true;
-    default:
-      return true;
+    if (stamps_.warningDue(verdict))
+    {
+      NODELET_WARN_STREAM(stamps_.dropMessage(verdict, "laser_features", stamp));
+    }
+    return false;
   }
+  if (action.reset)
+  {
+    NODELET_WARN("time jumped back %.3f s (looping bag?): odometry reset", -stamps_.lastStep());
+    resetLocked();
+    stamps_.check(stamp);  // this sweep starts the new run
+  }
+  if (action.restart_motion)
+  {
+    if (stamps_.warningDue(verdict))
+    {
+      NODELET_WARN(
+          "%.3f s since the last sweep (more than %.0f periods): motion prior reset, the sweep is "
+          "matched from rest (%zu gaps so far)",
+          stamps_.lastStep(), stamps_.config().max_gap_sweeps, stamps_.counts().gaps);
+    }
+    odometry_->resetMotionPrior();
+  }
+  return true;
 }
 
 bool LaserOdometryNodelet::process(const aloam::ros_io::StampedFeatureSet::ConstPtr& msg)
@@ -293,11 +293,12 @@ bool LaserOdometryNodelet::process(const aloam::ros_io::StampedFeatureSet::Const
   hypotheses_kept_frames_ += out->frame.hypothesis > 0 ? 1 : 0;
   frame_pub_.publish(out);  // never modified after this
 
-  const nav_msgs::Odometry odom = aloam::ros_io::toOdometryMsg(out->frame.pose, out->header, child_frame_);
+  const auto odom =
+      boost::make_shared<nav_msgs::Odometry>(aloam::ros_io::toOdometryMsg(out->frame.pose, out->header, child_frame_));
   odom_pub_.publish(odom);
   geometry_msgs::PoseStamped pose;
   pose.header = out->header;
-  pose.pose = odom.pose.pose;
+  pose.pose = odom->pose.pose;
   appendAndPublish(path_, pose, path_max_poses_, path_pub_);
   publishCloudIfSubscribed(corner_pub_, *out->frame.corners, msg->header);
   publishCloudIfSubscribed(surf_pub_, *out->frame.surfs, msg->header);

@@ -31,23 +31,13 @@ inline aloam::StampCheckConfig stampCheckParams(const ros::NodeHandle& pnh, cons
   return config;
 }
 
-/// Checks the stamp of every input sweep of a stage (aloam::StampCheck) and limits the warnings about
-/// unusual stamps to one per kThrottleSeconds for each verdict, per instance (two pipelines in one
-/// manager do not silence each other). Not thread-safe: the stage calls it under its own mutex.
-class StampGuard
+/// Limits the warnings about unusual stamps to one per kThrottleSeconds for each verdict, per instance (two
+/// pipelines in one manager do not silence each other).
+class VerdictThrottle
 {
 public:
-  explicit StampGuard(const aloam::StampCheckConfig& config = {}) : check_(config) {}
-
-  void setConfig(const aloam::StampCheckConfig& config) { check_.setConfig(config); }
-  const aloam::StampCheckConfig& config() const { return check_.config(); }
-  aloam::StampVerdict check(const ros::Time& stamp) { return check_.check(static_cast<std::int64_t>(stamp.toNSec())); }
-  double lastStep() const { return check_.lastStep(); }
-  const aloam::StampCounts& counts() const { return check_.counts(); }
-  void reset() { check_.reset(); }
-
   /// True when a warning about `verdict` may be logged now (and then not again for kThrottleSeconds).
-  bool warningDue(aloam::StampVerdict verdict)
+  bool due(aloam::StampVerdict verdict)
   {
     const ros::WallTime now = ros::WallTime::now();
     ros::WallTime& last = last_warning_[static_cast<std::size_t>(verdict)];
@@ -59,38 +49,62 @@ public:
     return true;
   }
 
-  /// The warning for a dropped sweep (duplicate or out of order) at `stamp` on `input`.
+private:
+  std::array<ros::WallTime, 6> last_warning_{};  // indexed by StampVerdict
+};
+
+/// The warning for a sweep at `stamp` on `input` dropped with `verdict` (duplicate or out of order), `step`
+/// seconds after the last one taken.
+inline std::string dropMessage(aloam::StampVerdict verdict, const std::string& input, const ros::Time& stamp,
+                               double step, const aloam::StampCounts& c)
+{
+  char text[256];
+  if (verdict == aloam::StampVerdict::kDuplicate)
+  {
+    std::snprintf(text, sizeof(text), "%s: sweep stamped %.6f dropped: same stamp as the last one (%zu so far)",
+                  input.c_str(), stamp.toSec(), c.duplicates);
+  }
+  else
+  {
+    std::snprintf(text, sizeof(text),
+                  "%s: sweep stamped %.6f dropped: %.3f s older than the last one, out of order (%zu so far)",
+                  input.c_str(), stamp.toSec(), -step, c.out_of_order);
+  }
+  return text;
+}
+
+/// Adds stamp counts to a diagnostics status.
+inline void reportStamps(diagnostic_updater::DiagnosticStatusWrapper& s, const aloam::StampCounts& c)
+{
+  s.add("stamps duplicate (dropped)", c.duplicates);
+  s.add("stamps out of order (dropped)", c.out_of_order);
+  s.add("time gaps (motion prediction restarted)", c.gaps);
+  s.add("time jumps back (reset)", c.jumps_back);
+}
+
+/// Checks the stamp of every input sweep of a stage (aloam::StampCheck; aloam::actionFor says what the stage
+/// does with it) and throttles the warnings. Not thread-safe: the stage calls it under its own mutex.
+class StampGuard
+{
+public:
+  explicit StampGuard(const aloam::StampCheckConfig& config = {}) : check_(config) {}
+
+  void setConfig(const aloam::StampCheckConfig& config) { check_.setConfig(config); }
+  const aloam::StampCheckConfig& config() const { return check_.config(); }
+  aloam::StampVerdict check(const ros::Time& stamp) { return check_.check(static_cast<std::int64_t>(stamp.toNSec())); }
+  double lastStep() const { return check_.lastStep(); }
+  const aloam::StampCounts& counts() const { return check_.counts(); }
+  void reset() { check_.reset(); }
+  bool warningDue(aloam::StampVerdict verdict) { return throttle_.due(verdict); }
   std::string dropMessage(aloam::StampVerdict verdict, const std::string& input, const ros::Time& stamp) const
   {
-    const aloam::StampCounts& c = check_.counts();
-    char text[256];
-    if (verdict == aloam::StampVerdict::kDuplicate)
-    {
-      std::snprintf(text, sizeof(text), "%s: sweep stamped %.6f dropped: same stamp as the last one (%zu so far)",
-                    input.c_str(), stamp.toSec(), c.duplicates);
-    }
-    else
-    {
-      std::snprintf(text, sizeof(text),
-                    "%s: sweep stamped %.6f dropped: %.3f s older than the last one, out of order (%zu so far)",
-                    input.c_str(), stamp.toSec(), -check_.lastStep(), c.out_of_order);
-    }
-    return text;
+    return aloam_nodelet::dropMessage(verdict, input, stamp, check_.lastStep(), check_.counts());
   }
-
-  /// Adds the counts to a diagnostics status.
-  void report(diagnostic_updater::DiagnosticStatusWrapper& s) const
-  {
-    const aloam::StampCounts& c = check_.counts();
-    s.add("stamps duplicate (dropped)", c.duplicates);
-    s.add("stamps out of order (dropped)", c.out_of_order);
-    s.add("time gaps (motion prediction restarted)", c.gaps);
-    s.add("time jumps back (reset)", c.jumps_back);
-  }
+  void report(diagnostic_updater::DiagnosticStatusWrapper& s) const { reportStamps(s, check_.counts()); }
 
 private:
   aloam::StampCheck check_;
-  std::array<ros::WallTime, 6> last_warning_{};  // indexed by StampVerdict
+  VerdictThrottle throttle_;
 };
 
 /// The match and degeneracy figures odometry and mapping both report for their last frame (one wording for

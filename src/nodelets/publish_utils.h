@@ -26,7 +26,8 @@ inline void publishCloudIfSubscribed(const ros::Publisher& pub, const aloam::Clo
 }
 
 /// Appends `pose` to `path`, keeping at most `max_poses` (the oldest go), and publishes the path if
-/// anyone listens.
+/// anyone listens, as a pointer to a copy (in-process subscribers get it without serialization; `path`
+/// itself goes on changing).
 inline void appendAndPublish(nav_msgs::Path& path, const geometry_msgs::PoseStamped& pose, std::size_t max_poses,
                              const ros::Publisher& pub)
 {
@@ -38,7 +39,7 @@ inline void appendAndPublish(nav_msgs::Path& path, const geometry_msgs::PoseStam
   if (pub.getNumSubscribers() > 0)
   {
     path.header.stamp = pose.header.stamp;
-    pub.publish(path);
+    pub.publish(boost::make_shared<nav_msgs::Path>(path));
   }
 }
 

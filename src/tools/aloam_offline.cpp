@@ -327,6 +327,10 @@ int main(int argc, char** argv)
   aloam::PipelineConfig config = opt.kitti_dir.empty() ? aloam::PipelineConfig() : aloam::io::kittiPipelineConfig();
   config.registration.sensor = *sensor;
   config.registration.scan_period = sensor->scanPeriod();
+  // The nodelets' time policy. Sweeps that come every keep_every-th period are not gaps (on a throttled
+  // topic, raise the nodelets' ~max_gap_sweeps the same way).
+  config.stamps.scan_period = sensor->scanPeriod();
+  config.stamps.max_gap_sweeps *= static_cast<double>(opt.keep_every);
   if (opt.minimum_range)
   {
     config.registration.minimum_range = *opt.minimum_range;

@@ -217,13 +217,16 @@ TEST(PipelineInputsTest, RejectedSweepsLeaveStateUntouched)
     EXPECT_TRUE(samePose(clean_out.odometry.pose, disturbed_out.odometry.pose)) << "sweep " << k;
     if (k == kDisturbAfter)
     {
+      int bad = 0;
       for (const BadInput& input : badInputs())
       {
         if (!input.must_reject)
         {
           continue;
         }
-        const PipelineOutput rejected = disturbed.process(input.cloud, stamp + 0.5 * kPeriod, true, true);
+        // Each with a stamp of its own between two sweeps (a repeated stamp would be dropped as a duplicate).
+        const double bad_stamp = stamp + 0.01 * kPeriod * ++bad;
+        const PipelineOutput rejected = disturbed.process(input.cloud, bad_stamp, true, true);
         EXPECT_EQ(rejected.status, PipelineStatus::kRejectedInput) << input.name;
       }
     }

@@ -9,7 +9,7 @@ mkdir -p "$out/obj"
 flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer -fsanitize=address,undefined -fno-sanitize-recover=undefined
        -I "$root/include" -I /usr/include/eigen3 -I /usr/include/pcl-1.13)
 sources=("$root"/src/core/*.cpp "$root"/src/sim/*.cpp "$root"/src/eval/*.cpp
-         "$root"/test/core/test_{sensor_model,scan_registration,laser_odometry,laser_mapping,cube_map,voxel_filter,kd_tree,lidar_factors,pose_solver,parallel,pipeline_inputs,kitti_metrics,sim_scene,sim_trajectories,stamp_check,odometry_gap,long_drive}.cpp)
+         "$root"/test/core/test_{sensor_model,scan_registration,laser_odometry,laser_mapping,mapping_session,cube_map,voxel_filter,kd_tree,lidar_factors,pose_solver,parallel,pipeline_inputs,kitti_metrics,sim_scene,sim_trajectories,stamp_check,odometry_gap,long_drive}.cpp)
 # Compile on every core. An object is reused only if neither its source nor any header changed since.
 if [ -f "$out/obj/.stamp" ] && [ -n "$(find "$root/include" "$root/test/core" -name '*.h' -newer "$out/obj/.stamp")" ]; then
   rm -f "$out"/obj/*.o

@@ -6,6 +6,7 @@
 #include "aloam_nodelet/core/laser_mapping.h"
 #include "aloam_nodelet/core/laser_odometry.h"
 #include "aloam_nodelet/core/scan_registration.h"
+#include "aloam_nodelet/core/stamp_check.h"
 
 namespace aloam
 {
@@ -14,12 +15,14 @@ struct PipelineConfig
   ScanRegistrationConfig registration;
   LaserOdometryConfig odometry;
   LaserMappingConfig mapping;
+  StampCheckConfig stamps;  ///< the time policy the nodelets apply (aloam::actionFor)
 };
 
 enum class PipelineStatus
 {
   kOk,
   kRejectedInput,  ///< too few usable points: nothing changed, no pose for this sweep
+  kDroppedStamp,   ///< duplicate or late stamp: dropped before any work, as the nodelets drop it
 };
 
 /// Wall time of each step. The first three lie on the latency path (input to mapped pose); the update
@@ -39,6 +42,7 @@ struct PipelineTimings
 struct PipelineOutput
 {
   PipelineStatus status = PipelineStatus::kRejectedInput;
+  StampVerdict stamp_verdict = StampVerdict::kFirst;
   std::shared_ptr<const FeatureSet> features;
   OdometryFrame odometry;
   MappingResult mapping;
@@ -53,6 +57,8 @@ public:
   explicit Pipeline(const PipelineConfig& config = {});
 
   /// Runs one sweep through all stages. `has_ring` / `has_time`: whether those point fields are filled.
+  /// The stamp goes through the nodelets' time policy first: dropped when duplicate or late, a reset when
+  /// it jumps back, the motion prediction restarted after a gap.
   PipelineOutput process(const Cloud& cloud, double stamp, bool has_ring, bool has_time);
 
   void reset();
@@ -64,6 +70,7 @@ private:
   ScanRegistration registration_;
   LaserOdometry odometry_;
   LaserMapping mapping_;
+  StampCheck stamps_;
 };
 
 }  // namespace aloam

@@ -34,6 +34,24 @@ inline bool isTaken(StampVerdict verdict)
   return verdict != StampVerdict::kDuplicate && verdict != StampVerdict::kOutOfOrder;
 }
 
+/// What a stage does with a sweep given its verdict: the one time policy of every stage, the nodelets and
+/// aloam_offline alike. A stage without state over time (registration) only needs `process`.
+struct StampAction
+{
+  bool process = true;          ///< false: drop the sweep (duplicate, late)
+  bool reset = false;           ///< the data starts over: forget the trajectory (odometry) and the map (mapping)
+  bool restart_motion = false;  ///< too long since the last sweep: do not extrapolate the motion over the gap
+};
+
+inline StampAction actionFor(StampVerdict verdict)
+{
+  StampAction action;
+  action.process = isTaken(verdict);
+  action.reset = verdict == StampVerdict::kJumpedBack;
+  action.restart_motion = verdict == StampVerdict::kGap;
+  return action;
+}
+
 /// Short name of a verdict for log messages ("duplicate", "gap", ...).
 const char* toString(StampVerdict verdict);
 

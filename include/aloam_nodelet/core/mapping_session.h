@@ -1,0 +1,136 @@
+// One mapping run as a node serves it: the map and its registration (LaserMapping), the time policy and the
+// resets, the correction for the full-rate answer, the recorded trajectory, and the clouds a node shows. The
+// mapping nodelet is a shell over this; aloam_offline and the tests use it without ROS.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <mutex>
+#include <vector>
+
+#include "aloam_nodelet/core/laser_mapping.h"
+#include "aloam_nodelet/core/stamp_check.h"
+
+namespace aloam
+{
+struct MappingSessionConfig
+{
+  LaserMappingConfig mapping;
+  StampCheckConfig stamps;
+  /// Poses kept for saving the trajectory (28 h at 10 Hz, 136 MB); beyond it the oldest tenth goes at once.
+  std::size_t trajectory_max_poses = 1'000'000;
+};
+
+/// Why a session starts a new map before the next registration.
+enum class ResetReason
+{
+  kNone,
+  kJumpedBack,         ///< the stamps started over (a looping bag)
+  kOdometryRestarted,  ///< odometry began a new trajectory at identity while the stamps went on
+  kRequested,          ///< requestReset()
+};
+
+/// What the session made of an arriving frame (admit()).
+struct Admission
+{
+  StampVerdict verdict = StampVerdict::kFirst;
+  double step = 0.0;                       ///< seconds since the last stamp taken
+  bool taken = false;                      ///< false: dropped (duplicate or late stamp)
+  ResetReason reset = ResetReason::kNone;  ///< a reset this frame caused (applied at its registration)
+  Pose corrected;                          ///< map <- sensor for the full-rate answer (latest correction)
+};
+
+/// Counters and the last frame's figures, for diagnostics.
+struct MappingSessionStats
+{
+  MappingResult last;  ///< map figures as of the last map update
+  std::size_t frames_registered = 0;
+  std::size_t frames_in_map = 0;  ///< registered since the map (re)started
+  std::size_t frames_mapped = 0;
+  std::size_t degraded = 0;
+  std::size_t remapped = 0;
+  std::size_t odometry_restarts = 0;
+  std::size_t evicted_cubes = 0;
+  std::size_t trajectory_dropped = 0;  ///< oldest poses dropped beyond trajectory_max_poses
+  StampCounts stamps;
+};
+
+/// The poses of the registered frames (map <- sensor) and their stamps, bounded.
+struct RecordedTrajectory
+{
+  std::vector<Pose> poses;
+  std::vector<double> stamps;
+
+  /// The poses relative to the first (KITTI's convention: the first pose is the identity).
+  std::vector<Pose> relativeToFirst() const;
+};
+
+/// Thread-safe: admit() takes a short lock of its own, so the full-rate answer never waits for a
+/// registration; everything else serializes on the session's core lock.
+class MappingSession
+{
+public:
+  explicit MappingSession(const MappingSessionConfig& config = {});
+
+  /// The pose path, first step (cheap): applies the time policy to the frame's stamp, detects an
+  /// odometry restart, and returns the full-rate answer. A reset it decides takes effect at the next
+  /// registerFrame(), so the answer is corrected by nothing once a reset is pending.
+  Admission admit(const OdometryFrame& frame, std::int64_t stamp_ns);
+
+  /// The pose path, second step: adds the previous frame to the map if that is still pending (updateMap()),
+  /// applies a pending reset, and registers `frame` against the map. The map itself is unchanged until
+  /// updateMap(), so the pose can be published first.
+  MappingResult registerFrame(const OdometryFrame& frame);
+
+  /// After the pose: the last registered frame joins the map and the next submap is indexed. Returns
+  /// false when there was nothing to add. `added` receives that frame and its completed result.
+  bool updateMap(OdometryFrame* added = nullptr, MappingResult* result = nullptr);
+
+  /// A new map starts before the next registration (service call).
+  void requestReset();
+
+  /// Applies a new configuration after adding the pending frame (a new cube size re-buckets the map
+  /// without losing points). Returns the map's point count before and after.
+  std::pair<std::size_t, std::size_t> setMappingConfig(const LaserMappingConfig& config);
+  LaserMappingConfig mappingConfig() const;
+  void setMaxGapSweeps(double sweeps);
+
+  /// The clouds a node shows, in the map frame: `cloud` moved by `pose`; the cubes around `pose`; the map.
+  static Cloud toMap(const Cloud& cloud, const Pose& pose);
+  Cloud surround(const Pose& pose) const;
+  /// Calls `read(const CubeMap&)` under the core lock, after adding the pending frame (saving, publishing
+  /// the whole map) and returns what it returns.
+  template <typename Read>
+  auto withMap(Read&& read)
+  {
+    std::lock_guard<std::mutex> lock(core_mutex_);
+    updateMapLocked(nullptr, nullptr);
+    return read(mapping_.map());
+  }
+
+  RecordedTrajectory trajectory() const;
+  MappingSessionStats stats() const;
+
+private:
+  void resetLocked();
+  bool updateMapLocked(OdometryFrame* added, MappingResult* result);
+
+  // Admission state (admission_mutex_): the full-rate answer must not wait for a registration.
+  mutable std::mutex admission_mutex_;
+  StampCheck stamps_;
+  Pose correction_;                // map <- odometry world, as of the last registration
+  bool odometry_running_ = false;  // a frame of the current odometry trajectory was admitted
+  bool reset_pending_ = false;
+  std::size_t odometry_restarts_ = 0;
+
+  // Everything else (core_mutex_).
+  mutable std::mutex core_mutex_;
+  std::size_t trajectory_max_poses_;
+  LaserMapping mapping_;
+  RecordedTrajectory trajectory_;
+  OdometryFrame unmapped_;  // registered, not yet in the map
+  bool has_unmapped_ = false;
+  MappingSessionStats stats_;
+};
+
+}  // namespace aloam

@@ -1,0 +1,208 @@
+#include "aloam_nodelet/core/mapping_session.h"
+
+namespace aloam
+{
+std::vector<Pose> RecordedTrajectory::relativeToFirst() const
+{
+  std::vector<Pose> relative;
+  relative.reserve(poses.size());
+  for (const Pose& pose : poses)
+  {
+    relative.push_back(poses.front().inverse() * pose);
+  }
+  return relative;
+}
+
+MappingSession::MappingSession(const MappingSessionConfig& config)
+  : stamps_(config.stamps), trajectory_max_poses_(config.trajectory_max_poses), mapping_(config.mapping)
+{
+}
+
+Admission MappingSession::admit(const OdometryFrame& frame, std::int64_t stamp_ns)
+{
+  std::lock_guard<std::mutex> lock(admission_mutex_);
+  Admission out;
+  out.verdict = stamps_.check(stamp_ns);
+  out.step = stamps_.lastStep();
+  const StampAction action = actionFor(out.verdict);
+  out.taken = action.process;
+  if (!out.taken)
+  {
+    return out;
+  }
+  // A gap needs nothing here: the correction (map <- odometry world) is a frame offset, not a velocity, so
+  // applying it after a gap extrapolates nothing; odometry restarts its own motion prior.
+  if (action.reset)
+  {
+    out.reset = ResetReason::kJumpedBack;
+  }
+  else if (frame.status == OdometryStatus::kInitialized && odometry_running_)
+  {
+    // Odometry started a new trajectory at identity (its reset service, a reload, a restarted manager)
+    // while the stamps went on: its poses no longer fit this map, and building on would corrupt it.
+    ++odometry_restarts_;
+    out.reset = ResetReason::kOdometryRestarted;
+  }
+  odometry_running_ = true;
+  if (out.reset != ResetReason::kNone)
+  {
+    reset_pending_ = true;
+    correction_ = Pose();  // the old map's correction means nothing to the new one
+  }
+  out.corrected = correction_ * frame.pose;
+  return out;
+}
+
+void MappingSession::requestReset()
+{
+  std::lock_guard<std::mutex> lock(admission_mutex_);
+  reset_pending_ = true;
+}
+
+MappingResult MappingSession::registerFrame(const OdometryFrame& frame)
+{
+  std::lock_guard<std::mutex> lock(core_mutex_);
+  updateMapLocked(nullptr, nullptr);  // the previous frame's, unless the after-the-pose work got to it first
+  bool reset = false;
+  {
+    std::lock_guard<std::mutex> admission(admission_mutex_);
+    std::swap(reset, reset_pending_);
+  }
+  if (reset)
+  {
+    resetLocked();
+  }
+  const MappingResult result = mapping_.registerFrame(frame);
+  {
+    std::lock_guard<std::mutex> admission(admission_mutex_);
+    correction_ = result.correction;
+  }
+  // The map figures (map size, cubes, evictions) keep their last values until the map update.
+  const MappingResult previous = stats_.last;
+  stats_.last = result;
+  stats_.last.map_corners = previous.map_corners;
+  stats_.last.map_surfs = previous.map_surfs;
+  stats_.last.cubes = previous.cubes;
+  ++stats_.frames_registered;
+  ++stats_.frames_in_map;
+  stats_.degraded += result.status == MappingStatus::kDegraded ? 1 : 0;
+  stats_.remapped += result.status == MappingStatus::kRemapped ? 1 : 0;
+  unmapped_ = frame;
+  has_unmapped_ = true;
+
+  trajectory_.poses.push_back(result.pose);
+  trajectory_.stamps.push_back(frame.stamp);
+  // The oldest tenth goes at once, so that a full trajectory is not shifted per frame.
+  if (trajectory_.poses.size() > trajectory_max_poses_ + trajectory_max_poses_ / 10)
+  {
+    const auto drop = static_cast<long>(trajectory_.poses.size() - trajectory_max_poses_);
+    stats_.trajectory_dropped += static_cast<std::size_t>(drop);
+    trajectory_.poses.erase(trajectory_.poses.begin(), trajectory_.poses.begin() + drop);
+    trajectory_.stamps.erase(trajectory_.stamps.begin(), trajectory_.stamps.begin() + drop);
+  }
+  return result;
+}
+
+bool MappingSession::updateMap(OdometryFrame* added, MappingResult* result)
+{
+  std::lock_guard<std::mutex> lock(core_mutex_);
+  return updateMapLocked(added, result);
+}
+
+bool MappingSession::updateMapLocked(OdometryFrame* added, MappingResult* result)
+{
+  if (!has_unmapped_)
+  {
+    return false;
+  }
+  mapping_.updateMap(stats_.last);
+  ++stats_.frames_mapped;
+  stats_.evicted_cubes = mapping_.totalEvictedCubes();
+  has_unmapped_ = false;
+  if (added)
+  {
+    *added = unmapped_;
+  }
+  if (result)
+  {
+    *result = stats_.last;
+  }
+  unmapped_ = OdometryFrame();  // the clouds go with the last reference
+  return true;
+}
+
+void MappingSession::resetLocked()
+{
+  mapping_.reset();
+  stats_.frames_in_map = 0;
+  trajectory_.poses.clear();
+  trajectory_.stamps.clear();
+  has_unmapped_ = false;
+  unmapped_ = OdometryFrame();
+}
+
+std::pair<std::size_t, std::size_t> MappingSession::setMappingConfig(const LaserMappingConfig& config)
+{
+  std::lock_guard<std::mutex> lock(core_mutex_);
+  updateMapLocked(nullptr, nullptr);  // the last frame joins the map as it was registered
+  const std::size_t before = mapping_.map().cornerCount() + mapping_.map().surfCount();
+  mapping_.setConfig(config);
+  return { before, mapping_.map().cornerCount() + mapping_.map().surfCount() };
+}
+
+LaserMappingConfig MappingSession::mappingConfig() const
+{
+  std::lock_guard<std::mutex> lock(core_mutex_);
+  return mapping_.config();
+}
+
+void MappingSession::setMaxGapSweeps(double sweeps)
+{
+  std::lock_guard<std::mutex> lock(admission_mutex_);
+  StampCheckConfig config = stamps_.config();
+  config.max_gap_sweeps = sweeps;
+  stamps_.setConfig(config);
+}
+
+Cloud MappingSession::toMap(const Cloud& cloud, const Pose& pose)
+{
+  Cloud out;
+  out.points.reserve(cloud.size());
+  for (const Point& p : cloud.points)
+  {
+    out.points.push_back(transformPoint(pose, p));
+  }
+  setUnorganized(out);
+  return out;
+}
+
+Cloud MappingSession::surround(const Pose& pose) const
+{
+  std::lock_guard<std::mutex> lock(core_mutex_);
+  const LaserMappingConfig& config = mapping_.config();
+  Cloud corners, surfs;
+  mapping_.map().gather(mapping_.map().indexOf(pose.t), config.submap_half_xy, config.submap_half_z, corners, surfs);
+  corners += surfs;
+  return corners;
+}
+
+RecordedTrajectory MappingSession::trajectory() const
+{
+  std::lock_guard<std::mutex> lock(core_mutex_);
+  return trajectory_;
+}
+
+MappingSessionStats MappingSession::stats() const
+{
+  MappingSessionStats out;
+  {
+    std::lock_guard<std::mutex> lock(core_mutex_);
+    out = stats_;
+  }
+  std::lock_guard<std::mutex> lock(admission_mutex_);
+  out.odometry_restarts = odometry_restarts_;
+  out.stamps = stamps_.counts();
+  return out;
+}
+
+}  // namespace aloam
