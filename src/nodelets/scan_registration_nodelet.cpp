@@ -145,9 +145,9 @@ void ScanRegistrationNodelet::pointsCb(const sensor_msgs::PointCloud2::ConstPtr&
 bool ScanRegistrationNodelet::process(const sensor_msgs::PointCloud2::ConstPtr& msg)
 {
   std::lock_guard<std::mutex> lock(mutex_);
-  // Gaps and jumps back pass: odometry and mapping, which keep state over time, act on them.
+  // Gaps and jumps back pass (aloam::actionFor): odometry and mapping, which keep state over time, act on them.
   const aloam::StampVerdict verdict = stamps_.check(msg->header.stamp);
-  if (!aloam::isTaken(verdict))
+  if (!aloam::actionFor(verdict).process)
   {
     if (stamps_.warningDue(verdict))
     {
