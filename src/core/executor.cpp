@@ -12,6 +12,10 @@
 #include <exception>
 #include <optional>
 
+#ifndef ALOAM_EXECUTOR_SPIN_US
+#define ALOAM_EXECUTOR_SPIN_US 0
+#endif
+
 #ifdef ALOAM_EXECUTOR_TBB
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
@@ -139,6 +143,7 @@ void Executor::runChunks(int count, int parts, int min_chunk, ChunkFn fn, void* 
     {
       std::lock_guard<std::mutex> lock(mutex_);
       regions_.push_back(&region);
+      listed_ = static_cast<int>(regions_.size());
     }
     if (parts - 1 >= static_cast<int>(helpers_.size()))
     {
@@ -159,6 +164,7 @@ void Executor::runChunks(int count, int parts, int min_chunk, ChunkFn fn, void* 
   {
     std::unique_lock<std::mutex> lock(mutex_);
     regions_.erase(std::remove(regions_.begin(), regions_.end(), &region), regions_.end());
+    listed_ = static_cast<int>(regions_.size());
     region.done_cv.wait(lock, [&] { return region.joined == 0; });
   }
 #endif
@@ -173,6 +179,19 @@ void Executor::helperLoop()
   std::unique_lock<std::mutex> lock(mutex_);
   while (true)
   {
+#if ALOAM_EXECUTOR_SPIN_US > 0
+    // Measurement only: stay awake a moment for the next region before sleeping.
+    if (regions_.empty() && !stop_)
+    {
+      lock.unlock();
+      const auto until = std::chrono::steady_clock::now() + std::chrono::microseconds(ALOAM_EXECUTOR_SPIN_US);
+      while (listed_.load() == 0 && std::chrono::steady_clock::now() < until)
+      {
+        std::this_thread::yield();
+      }
+      lock.lock();
+    }
+#endif
     work_cv_.wait(lock, [this] { return stop_ || !regions_.empty(); });
     if (stop_)
     {
@@ -190,6 +209,7 @@ void Executor::helperLoop()
       }
       it = regions_.erase(it);
     }
+    listed_ = static_cast<int>(regions_.size());
     if (region == nullptr)
     {
       continue;

@@ -1,6 +1,7 @@
 // The threads of one pipeline instance: its parallel regions and the background lane of its stages.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -78,6 +79,7 @@ private:
   mutable std::mutex mutex_;  // guards the region list, stop_ and the creation of lane_
   std::condition_variable work_cv_;
   std::vector<Region*> regions_;  // regions with chunks left to claim
+  std::atomic<int> listed_{ 0 };  // regions_.size(), read without the mutex
   bool stop_ = false;
   std::vector<std::thread> helpers_;
   struct Tbb;
