@@ -12,17 +12,6 @@
 #include <exception>
 #include <optional>
 
-#ifndef ALOAM_EXECUTOR_SPIN_US
-#define ALOAM_EXECUTOR_SPIN_US 0
-#endif
-
-#ifdef ALOAM_EXECUTOR_TBB
-#include <tbb/blocked_range.h>
-#include <tbb/parallel_for.h>
-#include <tbb/partitioner.h>
-#include <tbb/task_arena.h>
-#endif
-
 namespace aloam
 {
 // ---------------------------------------------------------------------------------------------------
@@ -64,19 +53,6 @@ struct Executor::Region
   }
 };
 
-#ifdef ALOAM_EXECUTOR_TBB
-struct Executor::Tbb
-{
-  // One slot reserved for the caller: the arena's other threads-1 slots are TBB's workers.
-  explicit Tbb(int threads) : arena(threads, 1) {}
-  tbb::task_arena arena;
-};
-#else
-struct Executor::Tbb
-{
-};
-#endif
-
 int Executor::effectiveParts(int count, int parts, int min_chunk)
 {
   return std::clamp(parts, 1, std::max(1, count / std::max(1, min_chunk)));
@@ -84,15 +60,11 @@ int Executor::effectiveParts(int count, int parts, int min_chunk)
 
 Executor::Executor(int threads) : threads_(std::max(1, threads))
 {
-#ifdef ALOAM_EXECUTOR_TBB
-  tbb_ = std::make_unique<Tbb>(threads_);
-#else
   helpers_.reserve(static_cast<std::size_t>(threads_ - 1));
   for (int i = 1; i < threads_; ++i)
   {
     helpers_.emplace_back(&Executor::helperLoop, this);
   }
-#endif
 }
 
 void Executor::runRegionChunks(Region& region)
@@ -120,30 +92,11 @@ void Executor::runChunks(int count, int parts, int min_chunk, ChunkFn fn, void* 
   region.parts = parts;
   region.fn = fn;
   region.context = context;
-#ifdef ALOAM_EXECUTOR_TBB
-  // Exceptions cancel the other chunks and come back out of parallel_for. Part 0 need not run on the
-  // caller here; nothing depends on it.
-  tbb_->arena.execute(
-      [&]
-      {
-        tbb::parallel_for(
-            tbb::blocked_range<int>(0, parts, 1),
-            [&](const tbb::blocked_range<int>& range)
-            {
-              for (int part = range.begin(); part < range.end(); ++part)
-              {
-                region.run(part);
-              }
-            },
-            tbb::simple_partitioner());
-      });
-#else
   if (!helpers_.empty())
   {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       regions_.push_back(&region);
-      listed_ = static_cast<int>(regions_.size());
     }
     if (parts - 1 >= static_cast<int>(helpers_.size()))
     {
@@ -164,10 +117,8 @@ void Executor::runChunks(int count, int parts, int min_chunk, ChunkFn fn, void* 
   {
     std::unique_lock<std::mutex> lock(mutex_);
     regions_.erase(std::remove(regions_.begin(), regions_.end(), &region), regions_.end());
-    listed_ = static_cast<int>(regions_.size());
     region.done_cv.wait(lock, [&] { return region.joined == 0; });
   }
-#endif
   if (region.error)
   {
     std::rethrow_exception(region.error);
@@ -179,19 +130,6 @@ void Executor::helperLoop()
   std::unique_lock<std::mutex> lock(mutex_);
   while (true)
   {
-#if ALOAM_EXECUTOR_SPIN_US > 0
-    // Measurement only: stay awake a moment for the next region before sleeping.
-    if (regions_.empty() && !stop_)
-    {
-      lock.unlock();
-      const auto until = std::chrono::steady_clock::now() + std::chrono::microseconds(ALOAM_EXECUTOR_SPIN_US);
-      while (listed_.load() == 0 && std::chrono::steady_clock::now() < until)
-      {
-        std::this_thread::yield();
-      }
-      lock.lock();
-    }
-#endif
     work_cv_.wait(lock, [this] { return stop_ || !regions_.empty(); });
     if (stop_)
     {
@@ -209,7 +147,6 @@ void Executor::helperLoop()
       }
       it = regions_.erase(it);
     }
-    listed_ = static_cast<int>(regions_.size());
     if (region == nullptr)
     {
       continue;

@@ -1,7 +1,6 @@
 // The threads of one pipeline instance: its parallel regions and the background lane of its stages.
 #pragma once
 
-#include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -25,7 +24,16 @@ namespace aloam
 /// The background lane runs Jobs: the work a stage does after its result is out (indexing a sweep,
 /// updating the map), started only when a core is idle and then run at normal priority (see Job).
 ///
-/// Idle helpers sleep on a condition variable; nothing spins.
+/// Idle helpers sleep on a condition variable; nothing spins. Measured (issue 13) on KITTI 00 frames
+/// 0-100, 2 threads per stage, on a 2-vCPU machine loaded by other builds, medians of interleaved runs,
+/// registration / odometry / mapping / map update / to the pose, ms (aloam_bench --only kitti, 6 runs each):
+///   these helpers                                    9.8 /  8.4 / 15.1 / 12.3 / 35.1
+///   helpers awake for 2 ms after a region (yield)   12.7 / 11.2 / 21.8 / 17.7 / 46.7
+///   TBB (task_arena of `threads`, parallel_for)     11.2 / 10.7 / 19.7 / 15.7 / 42.5
+/// Paced at 10 Hz (--pace 10, 4 runs) to the pose 33.5 / 41.9 / 39.0; live through the nodelets at 10 Hz
+/// (scripts/bench.sh --live-only, 4 runs) latency median 32.5 / 32.2 / 33.3, p90 38.6 / 42.9 / 44.0.
+/// On a shared machine a spinning thread takes the core the stage needs; in the least loaded round the
+/// three were within 4 % (28.1 / 27.0 / 27.1). TBB measured more than 5 % slower, so it is not used.
 class Executor
 {
 public:
@@ -79,12 +87,9 @@ private:
   mutable std::mutex mutex_;  // guards the region list, stop_ and the creation of lane_
   std::condition_variable work_cv_;
   std::vector<Region*> regions_;  // regions with chunks left to claim
-  std::atomic<int> listed_{ 0 };  // regions_.size(), read without the mutex
   bool stop_ = false;
   std::vector<std::thread> helpers_;
-  struct Tbb;
-  std::unique_ptr<Tbb> tbb_;    // the TBB variant's arena (ALOAM_EXECUTOR_TBB), else null
-  std::shared_ptr<Lane> lane_;  // last: its threads stop first
+  std::shared_ptr<Lane> lane_;  // stopped first by the destructor: a job may still use the helpers
 };
 
 /// Work a stage does off its latency path, run on the executor's lane after request(), or once a
