@@ -6,7 +6,6 @@
 
 #include <Eigen/Eigenvalues>
 
-#include "aloam_nodelet/core/parallel.h"
 #include "aloam_nodelet/core/pose_solver.h"
 #include "aloam_nodelet/core/voxel_filter.h"
 
@@ -38,8 +37,10 @@ void centroidAndScatter(const Cloud& cloud, const std::vector<int>& index, Eigen
 }
 }  // namespace
 
-LaserMapping::LaserMapping(LaserMappingConfig config)
-  : config_(config), map_(config.cube_size, config.corner_leaf_size, config.surf_leaf_size)
+LaserMapping::LaserMapping(LaserMappingConfig config, std::shared_ptr<Executor> executor)
+  : config_(config)
+  , executor_(executor ? std::move(executor) : std::make_shared<Executor>(config.threads))
+  , map_(config.cube_size, config.corner_leaf_size, config.surf_leaf_size)
 {
 }
 
@@ -128,6 +129,7 @@ bool LaserMapping::matchPlane(const Point& p, const Pose& pose, PlaneMatch& matc
 MatchSolveResult LaserMapping::solve(Pose& pose, int outer_iterations, MappingResult& result)
 {
   MatchSolveOptions options = matchSolveOptionsOf(config_);
+  options.executor = executor_.get();
   options.outer_iterations = outer_iterations;
   const MatchSolveResult r = matchAndSolve(
       pose, corner_stack_.size(), surf_stack_.size(), options,
@@ -232,19 +234,19 @@ MappingResult LaserMapping::registerFrame(const OdometryFrame& frame)
   corner_stack_.clear();
   surf_stack_.clear();
   // The two downsamplings are independent: one thread each.
-  parallelChunks(2, config_.threads, 1,
-                 [&](int begin, int end, int)
-                 {
-                   for (int layer = begin; layer < end; ++layer)
-                   {
-                     const auto& in = layer == 0 ? frame.corners : frame.surfs;
-                     if (in)
-                     {
-                       voxelDownsample(*in, layer == 0 ? config_.corner_leaf_size : config_.surf_leaf_size,
-                                       layer == 0 ? corner_stack_ : surf_stack_);
-                     }
-                   }
-                 });
+  executor_->parallelChunks(2, config_.threads, 1,
+                            [&](int begin, int end, int)
+                            {
+                              for (int layer = begin; layer < end; ++layer)
+                              {
+                                const auto& in = layer == 0 ? frame.corners : frame.surfs;
+                                if (in)
+                                {
+                                  voxelDownsample(*in, layer == 0 ? config_.corner_leaf_size : config_.surf_leaf_size,
+                                                  layer == 0 ? corner_stack_ : surf_stack_);
+                                }
+                              }
+                            });
 
   // updateMap() prepared the submap around the previous pose; it serves unless the robot changed cube.
   const CubeIndex centre = map_.indexOf(pose.t);

@@ -92,7 +92,8 @@ std::vector<RingReach> ringReach(const std::vector<double>& e, double window_deg
   return reach;
 }
 
-LaserOdometry::LaserOdometry(LaserOdometryConfig config)
+LaserOdometry::LaserOdometry(LaserOdometryConfig config, std::shared_ptr<Executor> executor)
+  : executor_(executor ? std::move(executor) : std::make_shared<Executor>(config.threads))
 {
   setConfig(config);
 }
@@ -220,6 +221,7 @@ LaserOdometry::Matches LaserOdometry::solve(const Cloud& sharp, const Cloud& fla
                                             double search_scale) const
 {
   MatchSolveOptions options = matchSolveOptionsOf(config_);
+  options.executor = executor_.get();
   options.outer_iterations = outer_iterations;
   options.first_search_scale = search_scale;
   const MatchSolveResult r = matchAndSolve(

@@ -2,8 +2,6 @@
 
 #include <cmath>
 
-#include "aloam_nodelet/core/parallel.h"
-
 namespace aloam
 {
 namespace
@@ -130,8 +128,8 @@ void evaluatePlane(const PlaneMatch& m, const PoseTerms& pose, double* r, double
 }
 
 MatchResiduals::MatchResiduals(const std::vector<LineMatch>& lines, const std::vector<PlaneMatch>& planes,
-                               double huber_delta, int threads)
-  : lines_(lines), planes_(planes), huber_delta_(huber_delta), threads_(threads)
+                               double huber_delta, int threads, Executor* executor)
+  : lines_(lines), planes_(planes), huber_delta_(huber_delta), threads_(threads), executor_(executor)
 {
   set_num_residuals(static_cast<int>(3 * lines.size() + planes.size()));
   mutable_parameter_block_sizes()->push_back(4);
@@ -148,7 +146,7 @@ bool MatchResiduals::Evaluate(double const* const* parameters, double* residuals
   const int n_lines = static_cast<int>(lines_.size());
   const int n_all = n_lines + static_cast<int>(planes_.size());
   // Rows: 3 per line match, then 1 per plane match.
-  parallelChunks(n_all, threads_, kMinMatchesPerThread,
+  parallelChunks(executor_, n_all, threads_, kMinMatchesPerThread,
                  [&](int begin, int end, int)
                  {
                    for (int i = begin; i < end; ++i)

@@ -1,5 +1,7 @@
 #include "aloam_nodelet/core/mapping_session.h"
 
+#include <utility>
+
 namespace aloam
 {
 std::vector<Pose> RecordedTrajectory::relativeToFirst() const
@@ -13,8 +15,10 @@ std::vector<Pose> RecordedTrajectory::relativeToFirst() const
   return relative;
 }
 
-MappingSession::MappingSession(const MappingSessionConfig& config)
-  : stamps_(config.stamps), trajectory_max_poses_(config.trajectory_max_poses), mapping_(config.mapping)
+MappingSession::MappingSession(const MappingSessionConfig& config, std::shared_ptr<Executor> executor)
+  : stamps_(config.stamps)
+  , trajectory_max_poses_(config.trajectory_max_poses)
+  , mapping_(config.mapping, std::move(executor))
 {
 }
 

@@ -1,5 +1,6 @@
 #include "aloam_nodelet/core/pipeline.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -25,12 +26,19 @@ LaserOdometryConfig withBeamTable(const PipelineConfig& config)
   }
   return odometry;
 }
+
+// As many threads as the stage that asks for the most (stages run one after another).
+int pipelineThreads(const PipelineConfig& config)
+{
+  return std::max({ config.registration.threads, config.odometry.threads, config.mapping.threads, 1 });
+}
 }  // namespace
 
 Pipeline::Pipeline(const PipelineConfig& config)
-  : registration_(config.registration)
-  , odometry_(withBeamTable(config))
-  , mapping_(config.mapping)
+  : executor_(std::make_shared<Executor>(pipelineThreads(config)))
+  , registration_(config.registration, executor_)
+  , odometry_(withBeamTable(config), executor_)
+  , mapping_(config.mapping, executor_)
   , stamps_(config.stamps)
 {
 }

@@ -36,11 +36,12 @@ void MatchSlots::resize(std::size_t line_points, std::size_t plane_points)
   plane_found.assign(plane_points, 0);
 }
 
-PoseProblem::PoseProblem(const Pose& initial, double huber_delta, int threads)
+PoseProblem::PoseProblem(const Pose& initial, double huber_delta, int threads, Executor* executor)
   : q_{ initial.q.x(), initial.q.y(), initial.q.z(), initial.q.w() }
   , t_{ initial.t.x(), initial.t.y(), initial.t.z() }
   , huber_delta_(huber_delta)
   , threads_(threads)
+  , executor_(executor)
 {
 }
 
@@ -73,9 +74,9 @@ void PoseProblem::solve(int max_iterations)
   ceres::Problem problem;  // owns the cost function and the manifold
   addQuaternionBlock(problem, q_);
   problem.AddParameterBlock(t_, 3);
-  problem.AddResidualBlock(new MatchResiduals(lines_, planes_, huber_delta_, threads_), nullptr, q_, t_);
-  // Ceres itself on one thread: MatchResiduals shares the evaluation, on helper threads that stay awake
-  // between the parallel regions of a sweep (Ceres's own pool measured slower at the sensor rate).
+  problem.AddResidualBlock(new MatchResiduals(lines_, planes_, huber_delta_, threads_, executor_), nullptr, q_, t_);
+  // Ceres itself on one thread: MatchResiduals shares the evaluation on the stage's executor (Ceres's own
+  // pool measured slower at the sensor rate).
   ceres::Solver::Options options;
   options.linear_solver_type = ceres::DENSE_QR;
   options.max_num_iterations = max_iterations;

@@ -5,7 +5,6 @@
 #include <numeric>
 
 #include "aloam_nodelet/core/fast_atan2.h"
-#include "aloam_nodelet/core/parallel.h"
 #include "aloam_nodelet/core/voxel_filter.h"
 
 namespace aloam
@@ -57,7 +56,11 @@ float squaredGap(const Point& a, const Point& b)
 }
 }  // namespace
 
-ScanRegistration::ScanRegistration(ScanRegistrationConfig config) : config_(std::move(config)) {}
+ScanRegistration::ScanRegistration(ScanRegistrationConfig config, std::shared_ptr<Executor> executor)
+  : config_(std::move(config))
+  , executor_(executor ? std::move(executor) : std::make_shared<Executor>(std::clamp(config_.threads, 1, kMaxThreads)))
+{
+}
 
 void ScanRegistration::bucketByRing(const Cloud& cloud, int begin, int end, bool ring_from_field, bool time_from_field,
                                     Worker& worker)
@@ -454,9 +457,9 @@ bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, 
   {
     worker.stats = RegistrationStats{};
   }
-  parallelChunks(static_cast<int>(cloud.size()), parts, 1,
-                 [&](int begin, int end, int part)
-                 { bucketByRing(cloud, begin, end, ring_from_field, time_from_field, workers_[part]); });
+  executor_->parallelChunks(static_cast<int>(cloud.size()), parts, 1,
+                            [&](int begin, int end, int part)
+                            { bucketByRing(cloud, begin, end, ring_from_field, time_from_field, workers_[part]); });
   double start_azimuth = 0.0;
   bool have_start = false;
   for (const Worker& worker : workers_)
@@ -523,14 +526,14 @@ bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, 
     }
     worker.stats = RegistrationStats{};
   }
-  parallelChunks(parts, parts, 1,
-                 [&](int first, int last, int)
-                 {
-                   for (int part = first; part < last; ++part)
-                   {
-                     extractRings(out.full, ring_begin, split[part], split[part + 1], workers_[part]);
-                   }
-                 });
+  executor_->parallelChunks(parts, parts, 1,
+                            [&](int first, int last, int)
+                            {
+                              for (int part = first; part < last; ++part)
+                              {
+                                extractRings(out.full, ring_begin, split[part], split[part + 1], workers_[part]);
+                              }
+                            });
   for (const Worker& worker : workers_)
   {
     const FeatureSet& f = worker.features;

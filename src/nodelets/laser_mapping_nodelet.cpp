@@ -20,11 +20,11 @@
 #include <aloam_nodelet/SaveMap.h>
 #include <aloam_nodelet/SaveTrajectory.h>
 
+#include "aloam_nodelet/core/executor.h"
 #include "aloam_nodelet/core/latest_slot.h"
 #include "aloam_nodelet/core/mapping_session.h"
 #include "aloam_nodelet/eval/trajectory_io.h"
 #include "aloam_nodelet/ros/stage_messages.h"
-#include "background_worker.h"
 #include "mapped_outputs.h"
 #include "nodelet_common.h"
 #include "param_utils.h"
@@ -67,8 +67,9 @@ private:
   ros::Publisher surround_pub_, map_pub_, registered_pub_;
   ros::ServiceServer save_map_srv_, save_trajectory_srv_, reset_srv_;
   std::unique_ptr<dynamic_reconfigure::Server<LaserMappingConfig>> reconfigure_server_;
+  std::shared_ptr<aloam::Executor> executor_;  // this nodelet's threads, joined on unload
   // Runs updateMap() after the pose is out; declared last, so stopped first.
-  std::unique_ptr<BackgroundWorker> updater_;
+  aloam::Executor::Job updater_;
 };
 
 void LaserMappingNodelet::onInit()
@@ -83,7 +84,8 @@ void LaserMappingNodelet::onInit()
   config.stamps = stampCheckParams(pnh, name);
   config.trajectory_max_poses = static_cast<std::size_t>(
       boundedParam(pnh, name, "trajectory_max_poses", static_cast<int>(config.trajectory_max_poses), 100, 100'000'000));
-  session_ = std::make_unique<aloam::MappingSession>(config);
+  executor_ = std::make_shared<aloam::Executor>(config.mapping.threads);
+  session_ = std::make_unique<aloam::MappingSession>(config, executor_);
   map_publish_period_ = boundedParam(pnh, name, "map_publish_period", map_publish_period_, 0.0, 3600.0);
   surround_every_ = boundedParam(pnh, name, "surround_every", surround_every_, 1, 1000);
   outputs_.init(nh, pnh, name);
@@ -99,7 +101,7 @@ void LaserMappingNodelet::onInit()
   save_trajectory_srv_ = pnh.advertiseService("save_trajectory", &LaserMappingNodelet::saveTrajectoryCb, this);
   reset_srv_ = pnh.advertiseService("reset", &LaserMappingNodelet::resetCb, this);
   monitor_.init(nh, pnh, name, [this](diagnostic_updater::DiagnosticStatusWrapper& s) { report(s); });
-  updater_ = std::make_unique<BackgroundWorker>([this] { updateMap(); });
+  updater_ = executor_->makeJob([this] { updateMap(); });
   frame_sub_ = nh.subscribe("laser_odom_frame", 5, &LaserMappingNodelet::frameCb, this);
 }
 
@@ -163,7 +165,7 @@ void LaserMappingNodelet::registerWaiting()
                              aloam::describe(result.degenerate).c_str());
     }
   }
-  updater_->request();
+  updater_.request();
 }
 
 void LaserMappingNodelet::publishUpdate()

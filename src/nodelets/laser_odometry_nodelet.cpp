@@ -17,11 +17,11 @@
 
 #include <aloam_nodelet/LaserOdometryConfig.h>
 
+#include "aloam_nodelet/core/executor.h"
 #include "aloam_nodelet/core/laser_odometry.h"
 #include "aloam_nodelet/core/sensor_model.h"
 #include "aloam_nodelet/ros/conversions.h"
 #include "aloam_nodelet/ros/stage_messages.h"
-#include "background_worker.h"
 #include "nodelet_common.h"
 #include "param_utils.h"
 #include "publish_utils.h"
@@ -42,7 +42,8 @@ private:
   void resetLocked();
   std::vector<double> beamTable(const ros::NodeHandle& pnh) const;
 
-  std::mutex mutex_;  // guards the core, the path and the time bookkeeping
+  std::mutex mutex_;                           // guards the core, the path and the time bookkeeping
+  std::shared_ptr<aloam::Executor> executor_;  // this nodelet's threads, joined on unload
   std::unique_ptr<aloam::LaserOdometry> odometry_;
   std::string world_frame_, child_frame_;
   std::size_t path_max_poses_ = 10000;
@@ -64,8 +65,9 @@ private:
   ros::Publisher frame_pub_, odom_pub_, path_pub_, corner_pub_, surf_pub_, full_pub_;
   ros::ServiceServer reset_srv_;
   std::unique_ptr<dynamic_reconfigure::Server<LaserOdometryConfig>> reconfigure_server_;
-  // Indexes each sweep for the next one after the frame is out; declared last, so stopped first.
-  std::unique_ptr<BackgroundWorker> indexer_;
+  // Indexes each sweep for the next one after the frame is out, on the executor's lane; declared last, so
+  // stopped (a running index waited for) first.
+  aloam::Executor::Job indexer_;
 };
 
 std::vector<double> LaserOdometryNodelet::beamTable(const ros::NodeHandle& pnh) const
@@ -112,8 +114,9 @@ void LaserOdometryNodelet::onInit()
   pnh.param<std::string>("world_frame", world_frame_, "camera_init");
   pnh.param<std::string>("child_frame", child_frame_, "laser_odom");
   path_max_poses_ = static_cast<std::size_t>(boundedParam(pnh, name, "path_max_poses", 10000, 1, 1'000'000));
-  odometry_ = std::make_unique<aloam::LaserOdometry>(config);
-  indexer_ = std::make_unique<BackgroundWorker>(
+  executor_ = std::make_shared<aloam::Executor>(config.threads);
+  odometry_ = std::make_unique<aloam::LaserOdometry>(config, executor_);
+  indexer_ = executor_->makeJob(
       [this]
       {
         std::lock_guard<std::mutex> lock(mutex_);
@@ -222,7 +225,7 @@ void LaserOdometryNodelet::mappedCb(const nav_msgs::Odometry::ConstPtr& msg)
 {
   if (msg->header.stamp.toNSec() == awaiting_mapped_ns_.load())
   {
-    indexer_->request();
+    indexer_.request();
   }
 }
 
@@ -306,7 +309,7 @@ bool LaserOdometryNodelet::process(const aloam::ros_io::StampedFeatureSet::Const
   // Off the latency path: once mapping has answered for the frame, or after index_wait. (If the next
   // sweep comes first, track() indexes.)
   awaiting_mapped_ns_ = stamp.toNSec();
-  indexer_->requestBy(std::chrono::steady_clock::now() + index_wait_);
+  indexer_.requestBy(std::chrono::steady_clock::now() + index_wait_);
   return true;
 }
 

@@ -30,7 +30,8 @@ private:
   void reconfigureCb(ScanRegistrationConfig& config, std::uint32_t level);
   aloam::SensorModel sensorModel(const std::string& preset, int beams) const;
 
-  std::mutex mutex_;  // guards the core and its configuration
+  std::mutex mutex_;                           // guards the core and its configuration
+  std::shared_ptr<aloam::Executor> executor_;  // this nodelet's threads, joined on unload
   std::unique_ptr<aloam::ScanRegistration> registration_;
   aloam::ros_io::ReaderOptions reader_options_;
   aloam::Cloud input_;                                           // reused between sweeps
@@ -79,7 +80,8 @@ void ScanRegistrationNodelet::onInit()
   reader_options_.scan_period = config.scan_period;
   reader_options_.max_points = static_cast<std::size_t>(
       boundedParam(pnh, name, "max_points", static_cast<int>(reader_options_.max_points), 1000, 20'000'000));
-  registration_ = std::make_unique<aloam::ScanRegistration>(config);
+  executor_ = std::make_shared<aloam::Executor>(config.threads);
+  registration_ = std::make_unique<aloam::ScanRegistration>(config, executor_);
   stamps_.setConfig(stampCheckParams(pnh, name));
 
   warnOutOfRange<ScanRegistrationConfig>(pnh, name);

@@ -187,9 +187,10 @@ TEST(PoseSolver, ThreadsDoNotChangeTheSolution)
                    Eigen::Vector3d(1.0, 2.0, 3.0));
   const MatchSlots slots = exactMatches(truth, 800, 3000, 0.05, rng);
   Pose solutions[2];
+  Executor executor(2);
   for (const int threads : { 1, 2 })
   {
-    PoseProblem problem(perturbed(truth, 0.03, 0.2), 0.1, threads);
+    PoseProblem problem(perturbed(truth, 0.03, 0.2), 0.1, threads, &executor);
     problem.addMatches(slots);
     problem.solve(4);
     solutions[threads - 1] = problem.pose();

@@ -9,6 +9,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "aloam_nodelet/core/cube_map.h"
+#include "aloam_nodelet/core/executor.h"
 #include "aloam_nodelet/core/kd_tree.h"
 #include "aloam_nodelet/core/laser_odometry.h"
 #include "aloam_nodelet/core/pose.h"
@@ -101,9 +102,12 @@ struct MappingResult
 class LaserMapping
 {
 public:
-  explicit LaserMapping(LaserMappingConfig config = {});
+  /// Parallel regions run on `executor` (a pipeline shares one among its stages); without one the stage
+  /// makes its own, sized from the configuration's `threads`.
+  explicit LaserMapping(LaserMappingConfig config = {}, std::shared_ptr<Executor> executor = nullptr);
 
   const LaserMappingConfig& config() const { return config_; }
+  const std::shared_ptr<Executor>& executor() const { return executor_; }
   /// Applies a new configuration; a new cube size re-buckets the map without losing points.
   void setConfig(const LaserMappingConfig& config);
 
@@ -127,6 +131,7 @@ public:
 
 private:
   LaserMappingConfig config_;
+  std::shared_ptr<Executor> executor_;
   CubeMap map_;
   Pose correction_;
   std::size_t evicted_total_ = 0;

@@ -6,6 +6,7 @@
 
 #include <vector>
 
+#include "aloam_nodelet/core/executor.h"
 #include "aloam_nodelet/core/feature_set.h"
 #include "aloam_nodelet/core/kd_tree.h"
 #include "aloam_nodelet/core/pose.h"
@@ -140,9 +141,12 @@ struct OdometryFrame
 class LaserOdometry
 {
 public:
-  explicit LaserOdometry(LaserOdometryConfig config = {});
+  /// Parallel regions run on `executor` (a pipeline shares one among its stages); without one the stage
+  /// makes its own, sized from the configuration's `threads`.
+  explicit LaserOdometry(LaserOdometryConfig config = {}, std::shared_ptr<Executor> executor = nullptr);
 
   const LaserOdometryConfig& config() const { return config_; }
+  const std::shared_ptr<Executor>& executor() const { return executor_; }
   void setConfig(const LaserOdometryConfig& config);
   /// Rings searched on each side of `ring` (from nearby_elevation_deg, or nearby_scan).
   RingReach reach(int ring) const;
@@ -184,6 +188,7 @@ private:
   };
 
   LaserOdometryConfig config_;
+  std::shared_ptr<Executor> executor_;
   std::vector<RingReach> ring_reach_;  // per ring of config_.ring_elevations_deg; empty: nearby_scan
   Pose pose_;                          // world <- current sweep end
   Pose motion_;                        // last sweep end <- current sweep end (the constant-velocity prior)

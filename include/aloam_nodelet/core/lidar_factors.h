@@ -6,6 +6,8 @@
 #include <ceres/ceres.h>
 #include <Eigen/Geometry>
 
+#include "aloam_nodelet/core/executor.h"
+
 namespace aloam
 {
 /// A point of the current sweep matched to a line of the reference (through `a`, unit `direction`).
@@ -52,13 +54,14 @@ Eigen::Matrix<double, 4, 3> quaternionPlusJacobian(const double* q);
 /// robustified here with the Huber loss of scale `huber_delta` (<= 0: none), so that the squared
 /// residuals sum to Ceres's robust cost, sum rho(|r|^2); the Jacobians are those of the scaled residuals.
 /// One residual block instead of one per match: Ceres's bookkeeping per block cost more than the
-/// residuals themselves. The matches are evaluated over `threads` threads; results do not depend on it.
+/// residuals themselves. The matches are evaluated in `threads` chunks on `executor` (null: on the calling
+/// thread); results depend on neither.
 class MatchResiduals : public ceres::CostFunction
 {
 public:
   /// Keeps references: the matches must outlive the cost function.
   MatchResiduals(const std::vector<LineMatch>& lines, const std::vector<PlaneMatch>& planes, double huber_delta,
-                 int threads);
+                 int threads, Executor* executor = nullptr);
   bool Evaluate(double const* const* parameters, double* residuals, double** jacobians) const override;
 
 private:
@@ -66,6 +69,7 @@ private:
   const std::vector<PlaneMatch>& planes_;
   double huber_delta_;
   int threads_;
+  Executor* executor_;
 };
 
 /// The residual of one match at `pose` without any loss (3 values for a line, 1 for a plane) into `r`, and

@@ -5,6 +5,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <mutex>
 #include <vector>
 
@@ -70,7 +71,8 @@ struct RecordedTrajectory
 class MappingSession
 {
 public:
-  explicit MappingSession(const MappingSessionConfig& config = {});
+  /// `executor`: the mapping stage's (see LaserMapping); null: the stage makes its own.
+  explicit MappingSession(const MappingSessionConfig& config = {}, std::shared_ptr<Executor> executor = nullptr);
 
   /// The pose path, first step (cheap): applies the time policy to the frame's stamp, detects an
   /// odometry restart, and returns the full-rate answer. A reset it decides takes effect at the next

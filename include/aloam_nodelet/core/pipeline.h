@@ -49,8 +49,9 @@ struct PipelineOutput
   PipelineTimings timings;
 };
 
-/// The three LOAM stages run one after another on each sweep. Holds no global state: any number of
-/// pipelines may live in one process.
+/// The three LOAM stages run one after another on each sweep, sharing one Executor (its threads are
+/// joined when the pipeline is destroyed). Holds no global state: any number of pipelines may live in one
+/// process.
 class Pipeline
 {
 public:
@@ -65,8 +66,10 @@ public:
   const ScanRegistration& registration() const { return registration_; }
   const LaserOdometry& odometry() const { return odometry_; }
   const LaserMapping& mapping() const { return mapping_; }
+  const std::shared_ptr<Executor>& executor() const { return executor_; }
 
 private:
+  std::shared_ptr<Executor> executor_;  // first: the stages use it
   ScanRegistration registration_;
   LaserOdometry odometry_;
   LaserMapping mapping_;

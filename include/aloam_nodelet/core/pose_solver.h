@@ -8,7 +8,7 @@
 #include <Eigen/Core>
 
 #include "aloam_nodelet/core/lidar_factors.h"
-#include "aloam_nodelet/core/parallel.h"
+#include "aloam_nodelet/core/executor.h"
 #include "aloam_nodelet/core/pose.h"
 
 namespace aloam
@@ -61,8 +61,9 @@ struct Degeneracy
 class PoseProblem
 {
 public:
-  /// `threads` share the evaluation of the residuals; the solution does not depend on it.
-  PoseProblem(const Pose& initial, double huber_delta, int threads = 1);
+  /// The evaluation of the residuals is split in `threads` chunks on `executor` (null: all on the calling
+  /// thread); the solution depends on neither.
+  PoseProblem(const Pose& initial, double huber_delta, int threads = 1, Executor* executor = nullptr);
 
   /// Takes every found match, lines then planes in point order; returns how many of each.
   std::pair<int, int> addMatches(const MatchSlots& slots);
@@ -99,6 +100,7 @@ private:
   double t_[3];
   double huber_delta_;
   int threads_;
+  Executor* executor_;
   std::vector<LineMatch> lines_;
   std::vector<PlaneMatch> planes_;
 };
@@ -106,10 +108,11 @@ private:
 /// How the matching stages alternate correspondence search and solving.
 struct MatchSolveOptions
 {
-  int outer_iterations = 2;  ///< searches, each followed by a solve
-  int max_iterations = 4;    ///< solver iterations per solve
-  int threads = 1;           ///< threads sharing the correspondence search
-  int min_matches = 10;      ///< fewer matches: stop without solving
+  int outer_iterations = 2;      ///< searches, each followed by a solve
+  int max_iterations = 4;        ///< solver iterations per solve
+  int threads = 1;               ///< chunks of the correspondence search (and of the residuals)
+  Executor* executor = nullptr;  ///< runs the chunks (null: all on the calling thread)
+  int min_matches = 10;          ///< fewer matches: stop without solving
   double huber_delta = 0.1;
   double lever_arm = 10.0;  ///< for the constraint strength of the last solve
   /// Eigenvalues of the scaled normal matrix below this are degenerate directions.
@@ -180,7 +183,7 @@ MatchSolveResult matchAndSolve(Pose& pose, std::size_t line_points, std::size_t 
   for (int outer = 0; outer < options.outer_iterations; ++outer)
   {
     const double scale = outer == 0 ? options.first_search_scale : 1.0;
-    parallelChunks(n_all, options.threads, kMinPointsPerThread,
+    parallelChunks(options.executor, n_all, options.threads, kMinPointsPerThread,
                    [&](int begin, int end, int)
                    {
                      for (int i = begin; i < end; ++i)
@@ -196,7 +199,7 @@ MatchSolveResult matchAndSolve(Pose& pose, std::size_t line_points, std::size_t 
                        }
                      }
                    });
-    PoseProblem problem(pose, options.huber_delta, options.threads);
+    PoseProblem problem(pose, options.huber_delta, options.threads, options.executor);
     const auto [lines, planes] = problem.addMatches(slots);
     result = MatchSolveResult();
     result.lines = lines;

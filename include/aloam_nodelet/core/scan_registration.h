@@ -2,8 +2,10 @@
 #pragma once
 
 #include <cstddef>
+#include <memory>
 #include <vector>
 
+#include "aloam_nodelet/core/executor.h"
 #include "aloam_nodelet/core/feature_set.h"
 #include "aloam_nodelet/core/sensor_model.h"
 
@@ -44,7 +46,9 @@ struct ScanRegistrationConfig
 class ScanRegistration
 {
 public:
-  explicit ScanRegistration(ScanRegistrationConfig config = {});
+  /// Parallel regions run on `executor` (a pipeline shares one among its stages); without one the stage
+  /// makes its own, sized from the configuration's `threads`.
+  explicit ScanRegistration(ScanRegistrationConfig config = {}, std::shared_ptr<Executor> executor = nullptr);
 
   const ScanRegistrationConfig& config() const { return config_; }
   void setConfig(const ScanRegistrationConfig& config) { config_ = config; }
@@ -53,6 +57,8 @@ public:
   /// `has_ring` / `has_time` say whether the ring and time fields of the points are filled.
   /// Returns false (and an empty, valid `out`) when fewer points survive than one ring needs.
   bool process(const Cloud& cloud, double stamp, bool has_ring, bool has_time, FeatureSet& out);
+
+  const std::shared_ptr<Executor>& executor() const { return executor_; }
 
 private:
   struct Scratch
@@ -78,6 +84,7 @@ private:
   };
 
   ScanRegistrationConfig config_;
+  std::shared_ptr<Executor> executor_;
   Scratch scratch_;
   std::vector<Worker> workers_;
 
