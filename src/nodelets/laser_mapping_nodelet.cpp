@@ -55,6 +55,8 @@ private:
   aloam::LatestSlot<StampedOdometryFrame::ConstPtr> waiting_;  // admitted, not yet registered
   // Held while a frame is registered; a frame arriving meanwhile waits in `waiting_`.
   std::mutex registering_;
+  std::atomic<double> last_register_ms_{ 0.0 };
+  double scan_period_ = 0.1;
   VerdictThrottle throttle_;
   StageMonitor monitor_;
 
@@ -82,6 +84,7 @@ void LaserMappingNodelet::onInit()
   aloam::MappingSessionConfig config;
   config.mapping.threads = boundedParam(pnh, name, "threads", config.mapping.threads, 1, 16);
   config.stamps = stampCheckParams(pnh, name);
+  scan_period_ = config.stamps.scan_period;
   config.trajectory_max_poses = static_cast<std::size_t>(
       boundedParam(pnh, name, "trajectory_max_poses", static_cast<int>(config.trajectory_max_poses), 100, 100'000'000));
   executor_ = std::make_shared<aloam::Executor>(config.mapping.threads);
@@ -132,7 +135,17 @@ void LaserMappingNodelet::frameCb(const StampedOdometryFrame::ConstPtr& msg)
   {
     NODELET_WARN_THROTTLE(kThrottleSeconds, "mapping is behind: %zu frames skipped so far", waiting_.skipped());
   }
-  registerWaiting();
+  // Not behind: register here, on the pose path, with no hand-over. Behind (the last registration took longer
+  // than a sweep period): the lane registers the newest waiting frame after its map update, skipping older
+  // ones; if the lane has not started since the last frame (no idle core), this thread runs it now.
+  if (last_register_ms_.load() <= 1000.0 * scan_period_)
+  {
+    registerWaiting();
+  }
+  else if (!updater_.runIfPending())
+  {
+    updater_.request();
+  }
 }
 
 void LaserMappingNodelet::registerWaiting()
@@ -153,7 +166,9 @@ void LaserMappingNodelet::registerWaiting()
       outputs_.clearPath();  // a new map (the first frame, or after a reset)
     }
     outputs_.publishMapped(msg.header.stamp, result.pose, result.correction);
-    monitor_.frameDone(msSince(start));
+    const double ms = msSince(start);
+    last_register_ms_ = ms;
+    monitor_.frameDone(ms);
     if (result.status == aloam::MappingStatus::kDegraded)
     {
       NODELET_WARN_THROTTLE(kThrottleSeconds, "mapping degraded (%d edge, %d plane matches, constraint %.1f)",
