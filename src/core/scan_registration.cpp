@@ -63,10 +63,10 @@ ScanRegistration::ScanRegistration(ScanRegistrationConfig config, std::shared_pt
 }
 
 void ScanRegistration::bucketByRing(const Cloud& cloud, int begin, int end, bool ring_from_field, bool time_from_field,
-                                    Worker& worker)
+                                    PartScratch& part)
 {
-  auto& rings = worker.rings;
-  auto& azimuths = worker.azimuths;
+  auto& rings = part.rings;
+  auto& azimuths = part.azimuths;
   for (auto& r : rings)
   {
     r.clear();
@@ -80,8 +80,8 @@ void ScanRegistration::bucketByRing(const Cloud& cloud, int begin, int end, bool
   {
     rings.resize(static_cast<std::size_t>(model_rings));
   }
-  RegistrationStats& stats = worker.stats;
-  worker.have_start = false;
+  RegistrationStats& stats = part.stats;
+  part.have_start = false;
   const double min_sq = config_.minimum_range * config_.minimum_range;
   const double max_sq = config_.maximum_range * config_.maximum_range;
 
@@ -128,10 +128,10 @@ void ScanRegistration::bucketByRing(const Cloud& cloud, int begin, int end, bool
     else
     {
       const double azimuth = fastAtan2(double(in.y), double(in.x));
-      if (!worker.have_start)
+      if (!part.have_start)
       {
-        worker.have_start = true;
-        worker.start_azimuth = azimuth;
+        part.have_start = true;
+        part.start_azimuth = azimuth;
       }
       if (azimuths.size() < rings.size())
       {
@@ -146,10 +146,10 @@ void ScanRegistration::bucketByRing(const Cloud& cloud, int begin, int end, bool
 void ScanRegistration::gatherRings(bool time_from_field, Cloud& full, std::vector<int>& ring_begin)
 {
   std::size_t rings = 0, total = 0;
-  for (const Worker& worker : workers_)
+  for (const PartScratch& part : parts_)
   {
-    rings = std::max(rings, worker.rings.size());
-    for (const auto& r : worker.rings)
+    rings = std::max(rings, part.rings.size());
+    for (const auto& r : part.rings)
     {
       total += r.size();
     }
@@ -157,19 +157,19 @@ void ScanRegistration::gatherRings(bool time_from_field, Cloud& full, std::vecto
   full.points.reserve(total);
   scratch_.azimuths.clear();
   ring_begin.clear();
-  // Ring by ring, each worker's share in input order: the firing order within every ring is kept.
+  // Ring by ring, each part's share in input order: the firing order within every ring is kept.
   for (std::size_t r = 0; r < rings; ++r)
   {
     ring_begin.push_back(static_cast<int>(full.size()));
-    for (const Worker& worker : workers_)
+    for (const PartScratch& part : parts_)
     {
-      if (r < worker.rings.size())
+      if (r < part.rings.size())
       {
-        full.points.insert(full.points.end(), worker.rings[r].begin(), worker.rings[r].end());
+        full.points.insert(full.points.end(), part.rings[r].begin(), part.rings[r].end());
       }
-      if (!time_from_field && r < worker.azimuths.size())
+      if (!time_from_field && r < part.azimuths.size())
       {
-        scratch_.azimuths.insert(scratch_.azimuths.end(), worker.azimuths[r].begin(), worker.azimuths[r].end());
+        scratch_.azimuths.insert(scratch_.azimuths.end(), part.azimuths[r].begin(), part.azimuths[r].end());
       }
     }
   }
@@ -297,7 +297,7 @@ void ScanRegistration::suppressNeighbours(const Cloud& full, int index, int ring
   }
 }
 
-void ScanRegistration::pickSector(const Cloud& full, int begin, int end, Worker& worker)
+void ScanRegistration::pickSector(const Cloud& full, int begin, int end, PartScratch& part)
 {
   // [begin, end) lies inside one ring whose bounds are [ring_begin, ring_end).
   const int w = config_.curvature_half_window;
@@ -306,8 +306,8 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, Worker&
   const auto& curvature = scratch_.curvature;
   auto& picked = scratch_.picked;
   auto& label = scratch_.label;
-  FeatureSet& out = worker.features;
-  auto& heap = worker.candidates;
+  FeatureSet& out = part.features;
+  auto& heap = part.candidates;
   const auto threshold = static_cast<float>(config_.curvature_threshold);
 
   // Edges: the free candidates above the threshold, sharpest first. A heap yields them in that order
@@ -381,13 +381,13 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, Worker&
   {
     if (label[i] <= kPlain)
     {
-      worker.less_flat_ring.push_back(full.points[i]);
+      part.less_flat_ring.push_back(full.points[i]);
     }
   }
 }
 
 void ScanRegistration::extractRings(const Cloud& full, const std::vector<int>& ring_begin, int first_ring, int end_ring,
-                                    Worker& worker)
+                                    PartScratch& part)
 {
   const int w = config_.curvature_half_window;
   const int min_ring_points = 2 * w + 1 + config_.sectors;
@@ -415,9 +415,9 @@ void ScanRegistration::extractRings(const Cloud& full, const std::vector<int>& r
       }
       scratch_.curvature[i] = dx * dx + dy * dy + dz * dz;
     }
-    markUnreliable(full, begin, end, worker.stats);
+    markUnreliable(full, begin, end, part.stats);
 
-    worker.less_flat_ring.clear();
+    part.less_flat_ring.clear();
     const int first = begin + w;
     const int span = (end - w) - first;
     for (int s = 0; s < config_.sectors; ++s)
@@ -426,10 +426,10 @@ void ScanRegistration::extractRings(const Cloud& full, const std::vector<int>& r
       const int ep = first + span * (s + 1) / config_.sectors;
       if (ep > sp)
       {
-        pickSector(full, sp, ep, worker);
+        pickSector(full, sp, ep, part);
       }
     }
-    voxelDownsample(worker.less_flat_ring, config_.less_flat_leaf_size, worker.features.less_flat);
+    voxelDownsample(part.less_flat_ring, config_.less_flat_leaf_size, part.features.less_flat);
   }
 }
 
@@ -452,25 +452,25 @@ bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, 
   const bool time_from_field = has_time && config_.use_time_field;
   const int parts =
       cloud.size() < static_cast<std::size_t>(kMinPointsForThreads) ? 1 : std::clamp(config_.threads, 1, kMaxThreads);
-  workers_.resize(static_cast<std::size_t>(parts));
-  for (Worker& worker : workers_)
+  parts_.resize(static_cast<std::size_t>(parts));
+  for (PartScratch& part : parts_)
   {
-    worker.stats = RegistrationStats{};
+    part.stats = RegistrationStats{};
   }
   executor_->parallelChunks(static_cast<int>(cloud.size()), parts, 1,
                             [&](int begin, int end, int part)
-                            { bucketByRing(cloud, begin, end, ring_from_field, time_from_field, workers_[part]); });
+                            { bucketByRing(cloud, begin, end, ring_from_field, time_from_field, parts_[part]); });
   double start_azimuth = 0.0;
   bool have_start = false;
-  for (const Worker& worker : workers_)
+  for (const PartScratch& part : parts_)
   {
-    stats.invalid += worker.stats.invalid;
-    stats.out_of_range += worker.stats.out_of_range;
-    stats.unassigned_ring += worker.stats.unassigned_ring;
-    if (!have_start && worker.have_start)
+    stats.invalid += part.stats.invalid;
+    stats.out_of_range += part.stats.out_of_range;
+    stats.unassigned_ring += part.stats.unassigned_ring;
+    if (!have_start && part.have_start)
     {
       have_start = true;
-      start_azimuth = worker.start_azimuth;
+      start_azimuth = part.start_azimuth;
     }
   }
   std::vector<int> ring_begin;
@@ -517,32 +517,31 @@ bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, 
     }
     split[part] = r;
   }
-  for (Worker& worker : workers_)
+  for (PartScratch& part : parts_)
   {
-    for (Cloud* c :
-         { &worker.features.sharp, &worker.features.less_sharp, &worker.features.flat, &worker.features.less_flat })
+    for (Cloud* c : { &part.features.sharp, &part.features.less_sharp, &part.features.flat, &part.features.less_flat })
     {
       c->clear();
     }
-    worker.stats = RegistrationStats{};
+    part.stats = RegistrationStats{};
   }
   executor_->parallelChunks(parts, parts, 1,
                             [&](int first, int last, int)
                             {
                               for (int part = first; part < last; ++part)
                               {
-                                extractRings(out.full, ring_begin, split[part], split[part + 1], workers_[part]);
+                                extractRings(out.full, ring_begin, split[part], split[part + 1], parts_[part]);
                               }
                             });
-  for (const Worker& worker : workers_)
+  for (const PartScratch& part : parts_)
   {
-    const FeatureSet& f = worker.features;
+    const FeatureSet& f = part.features;
     out.sharp.points.insert(out.sharp.points.end(), f.sharp.points.begin(), f.sharp.points.end());
     out.less_sharp.points.insert(out.less_sharp.points.end(), f.less_sharp.points.begin(), f.less_sharp.points.end());
     out.flat.points.insert(out.flat.points.end(), f.flat.points.begin(), f.flat.points.end());
     out.less_flat.points.insert(out.less_flat.points.end(), f.less_flat.points.begin(), f.less_flat.points.end());
-    stats.occluded += worker.stats.occluded;
-    stats.grazing += worker.stats.grazing;
+    stats.occluded += part.stats.occluded;
+    stats.grazing += part.stats.grazing;
   }
 
   for (Cloud* c : { &out.sharp, &out.less_sharp, &out.flat, &out.less_flat })

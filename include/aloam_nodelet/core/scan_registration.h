@@ -71,7 +71,7 @@ private:
     std::vector<std::int8_t> label;
   };
   /// What one thread needs and produces: its block of the input sorted into rings, then its rings' features.
-  struct Worker
+  struct PartScratch
   {
     std::vector<std::vector<Point>> rings;
     std::vector<std::vector<float>> azimuths;
@@ -79,22 +79,23 @@ private:
     double start_azimuth = 0.0;
     std::vector<int> candidates;
     Cloud less_flat_ring;
-    FeatureSet features;  // sharp, less_sharp, flat, less_flat of the worker's rings
+    FeatureSet features;  // sharp, less_sharp, flat, less_flat of the part's rings
     RegistrationStats stats;
   };
 
   ScanRegistrationConfig config_;
   std::shared_ptr<Executor> executor_;
   Scratch scratch_;
-  std::vector<Worker> workers_;
+  std::vector<PartScratch> parts_;
 
-  void bucketByRing(const Cloud& cloud, int begin, int end, bool ring_from_field, bool time_from_field, Worker& worker);
+  void bucketByRing(const Cloud& cloud, int begin, int end, bool ring_from_field, bool time_from_field,
+                    PartScratch& part);
   void gatherRings(bool time_from_field, Cloud& full, std::vector<int>& ring_begin);
   void timesFromAzimuth(double start_azimuth, const std::vector<int>& ring_begin, Cloud& full);
   void extractRings(const Cloud& full, const std::vector<int>& ring_begin, int first_ring, int end_ring,
-                    Worker& worker);
+                    PartScratch& part);
   void markUnreliable(const Cloud& full, int begin, int end, RegistrationStats& stats);
-  void pickSector(const Cloud& full, int begin, int end, Worker& worker);
+  void pickSector(const Cloud& full, int begin, int end, PartScratch& part);
   void suppressNeighbours(const Cloud& full, int index, int ring_begin, int ring_end);
 };
 
