@@ -110,6 +110,10 @@ void LaserMappingNodelet::onInit()
 
 void LaserMappingNodelet::frameCb(const StampedOdometryFrame::ConstPtr& msg)
 {
+  if (malformed(*msg, "laser_odom_frame", getName()))
+  {
+    return;
+  }
   const aloam::Admission admission = session_->admit(msg->frame, static_cast<std::int64_t>(msg->header.stamp.toNSec()));
   if (!admission.taken)
   {

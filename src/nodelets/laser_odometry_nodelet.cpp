@@ -210,7 +210,7 @@ bool LaserOdometryNodelet::resetCb(std_srvs::Trigger::Request&, std_srvs::Trigge
 
 void LaserOdometryNodelet::featuresCb(const aloam::ros_io::StampedFeatureSet::ConstPtr& msg)
 {
-  if (!msg->features)
+  if (!msg->features || malformed(*msg, "laser_features", getName()))
   {
     return;
   }

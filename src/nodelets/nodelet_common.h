@@ -12,12 +12,26 @@
 
 #include "aloam_nodelet/core/pose_solver.h"
 #include "aloam_nodelet/core/stamp_check.h"
+#include "aloam_nodelet/ros/stage_messages.h"
 #include "param_utils.h"
 
 namespace aloam_nodelet
 {
 /// Seconds between repeats of a per-frame warning.
 constexpr double kThrottleSeconds = 5.0;
+
+/// True (after a throttled warning naming the defect) when a stage message must be dropped:
+/// aloam::ros_io::validate() refuses it. From another process or a bag it may hold anything.
+template <typename StageMessage>
+bool malformed(const StageMessage& msg, const char* topic, const std::string& logger)
+{
+  const std::string error = aloam::ros_io::validate(msg);
+  if (!error.empty())
+  {
+    ROS_WARN_STREAM_THROTTLE_NAMED(kThrottleSeconds, logger, "dropping a malformed " << topic << " message: " << error);
+  }
+  return !error.empty();
+}
 
 /// The time policy of a stage from its private parameters (read once at start-up): ~scan_period,
 /// ~max_gap_sweeps, ~jump_back_tolerance.

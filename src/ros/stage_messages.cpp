@@ -1,6 +1,10 @@
 #include "aloam_nodelet/ros/stage_messages.h"
 
 #include <atomic>
+#include <cmath>
+#include <sstream>
+#include <tuple>
+#include <utility>
 
 #include "aloam_nodelet/ros/conversions.h"
 #include "aloam_nodelet/ros/pointcloud2_reader.h"
@@ -15,14 +19,24 @@ namespace
 std::atomic<std::size_t> wire_conversions{ 0 };
 
 // Reads a cloud written by toPointCloud2 (fields x y z intensity time ring), keeping its times as they
-// were (the reader makes them relative to the earliest point).
-void readCloud(const sensor_msgs::PointCloud2& msg, Cloud& out)
+// were (the reader makes them relative to the earliest point). A cloud that cannot be read whole is
+// cleared and `error` (if still empty) says why.
+void readCloud(const sensor_msgs::PointCloud2& msg, Cloud& out, const char* name, std::string& error)
 {
   ReaderOptions options;
-  options.max_points = 0;  // written by us: no cap
+  options.max_points = kMaxStagePoints;
   const ReadReport report = readPointCloud2(msg, options, out);
-  if (!report.ok)
+  const bool empty_message = msg.width == 0 || msg.height == 0;  // an empty cloud (no fields either) is fine
+  const bool short_read = report.points_out + report.dropped_invalid < report.points_in;
+  if (!report.ok || (!empty_message && (report.dropped_invalid > 0 || short_read)))
   {
+    if (error.empty() && !empty_message)
+    {
+      error = std::string(name) + " cloud: " +
+              (!report.ok   ? report.error
+               : short_read ? "truncated data"
+                            : "NaN/Inf or all-zero points");
+    }
     out.clear();
     return;
   }
@@ -33,11 +47,54 @@ void readCloud(const sensor_msgs::PointCloud2& msg, Cloud& out)
   }
 }
 
-std::shared_ptr<const Cloud> readSharedCloud(const sensor_msgs::PointCloud2& msg)
+std::shared_ptr<const Cloud> readSharedCloud(const sensor_msgs::PointCloud2& msg, const char* name, std::string& error)
 {
   auto cloud = std::make_shared<Cloud>();
-  readCloud(msg, *cloud);
+  readCloud(msg, *cloud, name, error);
   return cloud;
+}
+
+// fromPoseMsg() normalizes the quaternion: a pose that needed more than rounding is refused here.
+void checkPose(const geometry_msgs::Pose& pose, const char* name, std::string& error)
+{
+  const auto& q = pose.orientation;
+  const double norm = std::sqrt(q.w * q.w + q.x * q.x + q.y * q.y + q.z * q.z);
+  const auto& t = pose.position;
+  if (error.empty() && !(std::isfinite(t.x) && std::isfinite(t.y) && std::isfinite(t.z)))
+  {
+    error = std::string(name) + ": position not finite";
+  }
+  if (error.empty() && !(std::abs(norm - 1.0) < 1e-3))
+  {
+    std::ostringstream s;
+    s << name << ": quaternion norm " << norm << " (not a rotation)";
+    error = s.str();
+  }
+}
+
+std::string checkCloud(const Cloud* cloud, const char* name, bool by_ring)
+{
+  if (cloud == nullptr)
+  {
+    return "";  // a stage without that cloud copes (mapping downsamples only the clouds it has)
+  }
+  if (cloud->size() > kMaxStagePoints)
+  {
+    return std::string(name) + " cloud: " + std::to_string(cloud->size()) + " points";
+  }
+  for (std::size_t i = 0; i < cloud->size(); ++i)
+  {
+    const Point& p = cloud->points[i];
+    if (!(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && std::isfinite(p.time)))
+    {
+      return std::string(name) + " cloud: point " + std::to_string(i) + " not finite";
+    }
+    if (by_ring && i > 0 && p.ring < cloud->points[i - 1].ring)
+    {
+      return std::string(name) + " cloud: not ordered by ring at point " + std::to_string(i);
+    }
+  }
+  return "";
 }
 
 void writeCloud(const std::shared_ptr<const Cloud>& cloud, const std_msgs::Header& header,
@@ -78,11 +135,12 @@ void fromWire(const aloam_nodelet::FeatureClouds& in, StampedFeatureSet& out)
   f->stamp = in.header.stamp.toSec();
   f->scan_period = in.scan_period;
   f->has_time = in.has_time;
-  readCloud(in.sharp, f->sharp);
-  readCloud(in.less_sharp, f->less_sharp);
-  readCloud(in.flat, f->flat);
-  readCloud(in.less_flat, f->less_flat);
-  readCloud(in.full, f->full);
+  out.wire_error.clear();
+  readCloud(in.sharp, f->sharp, "sharp", out.wire_error);
+  readCloud(in.less_sharp, f->less_sharp, "less_sharp", out.wire_error);
+  readCloud(in.flat, f->flat, "flat", out.wire_error);
+  readCloud(in.less_flat, f->less_flat, "less_flat", out.wire_error);
+  readCloud(in.full, f->full, "full", out.wire_error);
   out.header = in.header;
   out.features = f;
 }
@@ -124,9 +182,80 @@ void fromWire(const aloam_nodelet::OdometryFrame& in, StampedOdometryFrame& out)
   f.corner_matches = in.corner_matches;
   f.plane_matches = in.plane_matches;
   f.constraint = in.constraint;
-  f.corners = readSharedCloud(in.corners);
-  f.surfs = readSharedCloud(in.surfs);
-  f.full = readSharedCloud(in.full);
+  out.wire_error.clear();
+  checkPose(in.pose, "pose", out.wire_error);
+  checkPose(in.motion, "motion", out.wire_error);
+  if (out.wire_error.empty() && in.status > static_cast<std::uint8_t>(OdometryStatus::kRemapped))
+  {
+    out.wire_error = "unknown status " + std::to_string(in.status);
+  }
+  f.corners = readSharedCloud(in.corners, "corners", out.wire_error);
+  f.surfs = readSharedCloud(in.surfs, "surfs", out.wire_error);
+  f.full = readSharedCloud(in.full, "full", out.wire_error);
+}
+
+std::string validate(const StampedFeatureSet& msg)
+{
+  if (!msg.wire_error.empty())
+  {
+    return msg.wire_error;
+  }
+  if (!msg.features)
+  {
+    return "no features";
+  }
+  const FeatureSet& f = *msg.features;
+  if (!std::isfinite(f.stamp))
+  {
+    return "stamp not finite";
+  }
+  if (!(f.scan_period > 0.0 && f.scan_period <= 10.0))
+  {
+    return "scan_period " + std::to_string(f.scan_period) + " s outside (0, 10]";
+  }
+  // Odometry indexes the edge and plane clouds ring by ring; the others it only reads.
+  for (const auto& [cloud, name, by_ring] :
+       { std::make_tuple(&f.sharp, "sharp", false), std::make_tuple(&f.less_sharp, "less_sharp", true),
+         std::make_tuple(&f.flat, "flat", false), std::make_tuple(&f.less_flat, "less_flat", true),
+         std::make_tuple(&f.full, "full", false) })
+  {
+    const std::string error = checkCloud(cloud, name, by_ring);
+    if (!error.empty())
+    {
+      return error;
+    }
+  }
+  return "";
+}
+
+std::string validate(const StampedOdometryFrame& msg)
+{
+  if (!msg.wire_error.empty())
+  {
+    return msg.wire_error;
+  }
+  const OdometryFrame& f = msg.frame;
+  if (!std::isfinite(f.stamp))
+  {
+    return "stamp not finite";
+  }
+  for (const auto& [pose, name] : { std::make_pair(&f.pose, "pose"), std::make_pair(&f.motion, "motion") })
+  {
+    if (!pose->isFinite() || !(std::abs(pose->q.norm() - 1.0) < 1e-3))
+    {
+      return std::string(name) + " not a finite rigid transform";
+    }
+  }
+  for (const auto& [cloud, name] :
+       { std::make_pair(f.corners.get(), "corners"), std::make_pair(f.surfs.get(), "surfs") })
+  {
+    const std::string error = checkCloud(cloud, name, false);
+    if (!error.empty())
+    {
+      return error;
+    }
+  }
+  return f.full ? checkCloud(f.full.get(), "full", false) : "";
 }
 
 }  // namespace ros_io

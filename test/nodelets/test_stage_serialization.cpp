@@ -1,6 +1,9 @@
 // The stage messages serialize as their generated wire messages and come back equal (what a second
 // process or rosbag sees). No master needed.
 #include <cmath>
+#include <limits>
+#include <string>
+#include <utility>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -135,6 +138,109 @@ TEST(StageSerialization, OdometryFrameRoundTrip)
   expectSameCloud(*in.frame.corners, *back.frame.corners, "corners");
   expectSameCloud(*in.frame.surfs, *back.frame.surfs, "surfs");
   expectSameCloud(*in.frame.full, *back.frame.full, "full");
+}
+
+// Well-formed stage messages pass validate(), as they come from registration and after the wire.
+TEST(StageValidation, WellFormedMessagesPass)
+{
+  StampedFeatureSet features;
+  features.features = sweepFeatures();
+  EXPECT_EQ(aloam::ros_io::validate(features), "");
+  EXPECT_EQ(aloam::ros_io::validate(roundTrip(features)), "");
+  StampedOdometryFrame frame;
+  frame.frame.corners = std::shared_ptr<const aloam::Cloud>(features.features, &features.features->less_sharp);
+  frame.frame.surfs = std::shared_ptr<const aloam::Cloud>(features.features, &features.features->less_flat);
+  EXPECT_EQ(aloam::ros_io::validate(frame), "");
+  EXPECT_EQ(aloam::ros_io::validate(roundTrip(frame)), "");
+}
+
+// Serialized bytes of a message, and those bytes read back as the in-process type.
+template <typename Wire>
+std::vector<std::uint8_t> bytesOf(const Wire& wire)
+{
+  std::vector<std::uint8_t> buffer(ros::serialization::serializationLength(wire));
+  ros::serialization::OStream out(buffer.data(), static_cast<std::uint32_t>(buffer.size()));
+  ros::serialization::serialize(out, wire);
+  return buffer;
+}
+template <typename M>
+M fromBytes(std::vector<std::uint8_t> bytes)
+{
+  M m;
+  ros::serialization::IStream in(bytes.data(), static_cast<std::uint32_t>(bytes.size()));
+  ros::serialization::deserialize(in, m);
+  return m;
+}
+
+// Hand-made malformed messages: each is refused, and the refusal says what is wrong.
+TEST(StageValidation, MalformedFeatureSetsAreRefused)
+{
+  const auto good = sweepFeatures();
+  auto expectRefused = [](const StampedFeatureSet& m, const std::string& what)
+  {
+    const std::string error = aloam::ros_io::validate(m);
+    EXPECT_NE(error.find(what), std::string::npos) << "expected '" << what << "', got '" << error << "'";
+  };
+  StampedFeatureSet m;
+  expectRefused(m, "no features");
+
+  auto nan_point = std::make_shared<aloam::FeatureSet>(*good);
+  nan_point->flat.points[0].y = std::numeric_limits<float>::quiet_NaN();
+  m.features = nan_point;
+  expectRefused(m, "flat cloud: point 0 not finite");
+
+  auto period = std::make_shared<aloam::FeatureSet>(*good);
+  period->scan_period = std::numeric_limits<double>::infinity();
+  m.features = period;
+  expectRefused(m, "scan_period");
+
+  auto unordered = std::make_shared<aloam::FeatureSet>(*good);
+  ASSERT_GT(unordered->less_flat.size(), 2u);
+  std::swap(unordered->less_flat.points.front(), unordered->less_flat.points.back());
+  m.features = unordered;
+  expectRefused(m, "less_flat cloud: not ordered by ring");
+
+  // On the wire: a cloud whose data is shorter than its width says, and a buffer cut short.
+  StampedFeatureSet in;
+  in.features = good;
+  aloam_nodelet::FeatureClouds wire = aloam::ros_io::toWire(in);
+  wire.less_sharp.data.resize(wire.less_sharp.data.size() / 2);
+  expectRefused(fromBytes<StampedFeatureSet>(bytesOf(wire)), "less_sharp cloud");
+  std::vector<std::uint8_t> bytes = bytesOf(aloam::ros_io::toWire(in));
+  bytes.resize(bytes.size() - 10);
+  EXPECT_THROW(fromBytes<StampedFeatureSet>(bytes), ros::serialization::StreamOverrunException);
+}
+
+TEST(StageValidation, MalformedOdometryFramesAreRefused)
+{
+  const auto features = sweepFeatures();
+  StampedOdometryFrame in;
+  in.frame.corners = std::shared_ptr<const aloam::Cloud>(features, &features->less_sharp);
+  in.frame.surfs = std::shared_ptr<const aloam::Cloud>(features, &features->less_flat);
+  auto expectRefused = [](const aloam_nodelet::OdometryFrame& wire, const std::string& what)
+  {
+    const std::string error = aloam::ros_io::validate(fromBytes<StampedOdometryFrame>(bytesOf(wire)));
+    EXPECT_NE(error.find(what), std::string::npos) << "expected '" << what << "', got '" << error << "'";
+  };
+  aloam_nodelet::OdometryFrame wire = aloam::ros_io::toWire(in);
+  wire.pose.orientation.w = 2.0;  // norm 2: no rotation
+  expectRefused(wire, "pose: quaternion norm 2");
+  wire = aloam::ros_io::toWire(in);
+  wire.motion.position.x = std::numeric_limits<double>::infinity();
+  expectRefused(wire, "motion: position not finite");
+  wire = aloam::ros_io::toWire(in);
+  wire.pose.orientation.x = std::numeric_limits<double>::quiet_NaN();
+  expectRefused(wire, "pose: quaternion norm nan");
+  wire = aloam::ros_io::toWire(in);
+  wire.status = 200;
+  expectRefused(wire, "unknown status 200");
+  wire = aloam::ros_io::toWire(in);
+  wire.surfs.width = 1u << 30;  // absurd count for the data it carries
+  expectRefused(wire, "surfs cloud");
+
+  StampedOdometryFrame inf_stamp = in;
+  inf_stamp.frame.stamp = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_NE(aloam::ros_io::validate(inf_stamp).find("stamp not finite"), std::string::npos);
 }
 
 }  // namespace

@@ -27,6 +27,8 @@ struct StampedFeatureSet
 {
   std_msgs::Header header;  ///< the input sweep's stamp and frame
   std::shared_ptr<const FeatureSet> features;
+  /// Why fromWire() could not take the message as it came (empty: it could); see validate().
+  std::string wire_error;
 
   using Ptr = boost::shared_ptr<StampedFeatureSet>;
   using ConstPtr = boost::shared_ptr<const StampedFeatureSet>;
@@ -39,6 +41,8 @@ struct StampedOdometryFrame
   std::string child_frame_id;   ///< the odometry body frame
   std::string sensor_frame_id;  ///< frame of the input point clouds
   OdometryFrame frame;
+  /// Why fromWire() could not take the message as it came (empty: it could); see validate().
+  std::string wire_error;
 
   using Ptr = boost::shared_ptr<StampedOdometryFrame>;
   using ConstPtr = boost::shared_ptr<const StampedOdometryFrame>;
@@ -53,6 +57,16 @@ aloam_nodelet::FeatureClouds toWire(const StampedFeatureSet& in);
 void fromWire(const aloam_nodelet::FeatureClouds& in, StampedFeatureSet& out);
 aloam_nodelet::OdometryFrame toWire(const StampedOdometryFrame& in);
 void fromWire(const aloam_nodelet::OdometryFrame& in, StampedOdometryFrame& out);
+
+/// Whether a stage message (from another process, a bag, or this one) is fit for the next stage: empty if
+/// it is, else why not (unreadable or truncated clouds, NaN/Inf points, poses or stamps, a non-unit
+/// quaternion, an absurd scan period or point count, clouds not ordered by ring). Both the nodelets and
+/// test/fuzz/fuzz_stage_messages.cpp call it before handing the message to the core.
+std::string validate(const StampedFeatureSet& msg);
+std::string validate(const StampedOdometryFrame& msg);
+
+/// More points than this in one stage cloud is no sweep (the input reader caps a sweep at 20 M points).
+constexpr std::size_t kMaxStagePoints = 20'000'000;
 
 }  // namespace ros_io
 }  // namespace aloam
