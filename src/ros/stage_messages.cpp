@@ -2,6 +2,7 @@
 
 #include <atomic>
 #include <cmath>
+#include <cstring>
 #include <sstream>
 #include <tuple>
 #include <utility>
@@ -72,6 +73,59 @@ void checkPose(const geometry_msgs::Pose& pose, const char* name, std::string& e
   }
 }
 
+// Reads through a serialized message, checking each length prefix against what is left.
+class WireCursor
+{
+public:
+  WireCursor(const std::uint8_t* data, std::uint32_t size) : data_(data), left_(data == nullptr ? 0 : size) {}
+
+  bool skip(std::uint32_t n)
+  {
+    if (n > left_)
+    {
+      return false;
+    }
+    data_ += n;
+    left_ -= n;
+    return true;
+  }
+  bool u32(std::uint32_t& v)
+  {
+    if (left_ < 4)
+    {
+      return false;
+    }
+    std::memcpy(&v, data_, 4);  // ROS serializes little-endian, as this machine
+    return skip(4);
+  }
+  bool string()
+  {
+    std::uint32_t n = 0;
+    return u32(n) && skip(n);
+  }
+  bool header() { return skip(4 + 8) && string(); }  // seq, stamp, frame_id
+  bool cloud()
+  {
+    std::uint32_t fields = 0, bytes = 0;
+    if (!header() || !skip(4 + 4) || !u32(fields) || fields > left_ / 13)  // height, width; a field is >= 13 bytes
+    {
+      return false;
+    }
+    for (std::uint32_t i = 0; i < fields; ++i)
+    {
+      if (!string() || !skip(4 + 1 + 4))  // name, offset, datatype, count
+      {
+        return false;
+      }
+    }
+    return skip(1 + 4 + 4) && u32(bytes) && skip(bytes) && skip(1);  // is_bigendian, steps, data, is_dense
+  }
+
+private:
+  const std::uint8_t* data_;
+  std::uint32_t left_;
+};
+
 std::string checkCloud(const Cloud* cloud, const char* name, bool by_ring)
 {
   if (cloud == nullptr)
@@ -88,6 +142,11 @@ std::string checkCloud(const Cloud* cloud, const char* name, bool by_ring)
     if (!(std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && std::isfinite(p.time)))
     {
       return std::string(name) + " cloud: point " + std::to_string(i) + " not finite";
+    }
+    if (!(std::abs(p.x) <= kMaxStageRange && std::abs(p.y) <= kMaxStageRange && std::abs(p.z) <= kMaxStageRange))
+    {
+      return std::string(name) + " cloud: point " + std::to_string(i) + " farther than " +
+             std::to_string(int(kMaxStageRange)) + " m";
     }
     if (by_ring && i > 0 && p.ring < cloud->points[i - 1].ring)
     {
@@ -194,6 +253,20 @@ void fromWire(const aloam_nodelet::OdometryFrame& in, StampedOdometryFrame& out)
   f.full = readSharedCloud(in.full, "full", out.wire_error);
 }
 
+bool wireLengthsFit(const aloam_nodelet::FeatureClouds*, const std::uint8_t* data, std::uint32_t size)
+{
+  WireCursor c(data, size);
+  return c.header() && c.skip(8 + 1) && c.cloud() && c.cloud() && c.cloud() && c.cloud() && c.cloud();
+}
+
+bool wireLengthsFit(const aloam_nodelet::OdometryFrame*, const std::uint8_t* data, std::uint32_t size)
+{
+  WireCursor c(data, size);
+  // header, frames, two poses (7 float64 each), status, distorted, matches, constraint, degenerate count
+  return c.header() && c.string() && c.string() && c.skip(2 * 56 + 1 + 1 + 4 + 4 + 8 + 1) && c.cloud() && c.cloud() &&
+         c.cloud();
+}
+
 std::string validate(const StampedFeatureSet& msg)
 {
   if (!msg.wire_error.empty())
@@ -241,9 +314,9 @@ std::string validate(const StampedOdometryFrame& msg)
   }
   for (const auto& [pose, name] : { std::make_pair(&f.pose, "pose"), std::make_pair(&f.motion, "motion") })
   {
-    if (!pose->isFinite() || !(std::abs(pose->q.norm() - 1.0) < 1e-3))
+    if (!pose->isFinite() || !(std::abs(pose->q.norm() - 1.0) < 1e-3) || !(pose->t.norm() <= kMaxStageTranslation))
     {
-      return std::string(name) + " not a finite rigid transform";
+      return std::string(name) + " not a rigid transform within " + std::to_string(int(kMaxStageTranslation)) + " m";
     }
   }
   for (const auto& [cloud, name] :

@@ -58,6 +58,12 @@ void fromWire(const aloam_nodelet::FeatureClouds& in, StampedFeatureSet& out);
 aloam_nodelet::OdometryFrame toWire(const StampedOdometryFrame& in);
 void fromWire(const aloam_nodelet::OdometryFrame& in, StampedOdometryFrame& out);
 
+/// Whether every length prefix of a serialized FeatureClouds / OdometryFrame (strings, cloud fields, cloud
+/// data) fits in the bytes that follow. roscpp's generated readers resize a vector to its prefix before
+/// they read it, so a message claiming 4 G cloud fields would allocate ~100 GB before failing.
+bool wireLengthsFit(const aloam_nodelet::FeatureClouds* type, const std::uint8_t* data, std::uint32_t size);
+bool wireLengthsFit(const aloam_nodelet::OdometryFrame* type, const std::uint8_t* data, std::uint32_t size);
+
 /// Whether a stage message (from another process, a bag, or this one) is fit for the next stage: empty if
 /// it is, else why not (unreadable or truncated clouds, NaN/Inf points, poses or stamps, a non-unit
 /// quaternion, an absurd scan period or point count, clouds not ordered by ring). Both the nodelets and
@@ -67,6 +73,11 @@ std::string validate(const StampedOdometryFrame& msg);
 
 /// More points than this in one stage cloud is no sweep (the input reader caps a sweep at 20 M points).
 constexpr std::size_t kMaxStagePoints = 20'000'000;
+/// Stage clouds are in the sensor frame: a point farther than this (m) along an axis is no return (the
+/// widest range a .cfg allows is 500 m), and squaring such coordinates could overflow in the stages.
+constexpr float kMaxStageRange = 10'000.0f;
+/// Poses farther than this (m) from the odometry origin: 10,000 km, no drive gets there.
+constexpr double kMaxStageTranslation = 1e7;
 
 }  // namespace ros_io
 }  // namespace aloam
@@ -122,6 +133,10 @@ struct StageSerializer
   static void read(Stream& stream, T& m)
   {
     decltype(aloam::ros_io::toWire(m)) wire;
+    if (!aloam::ros_io::wireLengthsFit(&wire, stream.getData(), stream.getLength()))
+    {
+      throw StreamOverrunException("stage message: a length prefix runs past the end of the buffer");
+    }
     stream.next(wire);
     aloam::ros_io::fromWire(wire, m);
   }
