@@ -5,7 +5,8 @@
 //
 // Code defaults come from default-constructed config structs where a parameter maps onto one (the
 // nodelets copy cfg and private parameters into these fields under the same names), otherwise from the
-// literal fallback of the nodelet's pnh.param / boundedParam call (or the member it defaults to), and
+// literal fallback of the pnh.param / boundedParam call in the nodelet or a nodelet header it includes
+// (or the member it defaults to), and
 // for the few parameters that only the .cfg declares (scan_registration's sensor and beams) from there.
 #include <cmath>
 #include <cstdlib>
@@ -245,9 +246,24 @@ std::map<std::string, Defaults> codeDefaults(bool with_cfg_only)
   std::map<std::string, Defaults> d = structDefaults();
   for (const char* node : kNodes)
   {
-    for (const auto& [name, value] : nodeletLiterals(kRoot / "src/nodelets" / (std::string(node) + "_nodelet.cpp")))
+    // The nodelet's source and the nodelet headers it includes (some read parameters of their own).
+    const fs::path source = kRoot / "src/nodelets" / (std::string(node) + "_nodelet.cpp");
+    std::vector<fs::path> files = { source };
+    const std::string text = readFile(source);
+    const std::regex include(R"re(#include\s+"(\w+\.h)")re");
+    for (auto it = std::sregex_iterator(text.begin(), text.end(), include); it != std::sregex_iterator(); ++it)
     {
-      d[node].emplace(name, value);
+      if (fs::exists(kRoot / "src/nodelets" / (*it)[1].str()))
+      {
+        files.push_back(kRoot / "src/nodelets" / (*it)[1].str());
+      }
+    }
+    for (const fs::path& file : files)
+    {
+      for (const auto& [name, value] : nodeletLiterals(file))
+      {
+        d[node].emplace(name, value);
+      }
     }
   }
   if (with_cfg_only)
