@@ -48,7 +48,7 @@ done
 log="$out/host.log"
 start=$SECONDS
 status=0
-tsan_options="halt_on_error=0 exitcode=66 second_deadlock_stack=1 history_size=4"
+tsan_options="halt_on_error=0 exitcode=66 second_deadlock_stack=1 history_size=7"
 tsan_options+=" suppressions=$root/test/sanitize/tsan.supp"
 "${export_env[@]}" "TSAN_OPTIONS=$tsan_options" bash -c '
   source "$1/devel/setup.bash" && exec timeout --kill-after=30 1800 "$2" "$3" "$4"' _ "$ws" "$host" "$out/run" "$sweeps" \
