@@ -39,7 +39,7 @@ echo "built the core tests with ThreadSanitizer in $((SECONDS - start)) s"
 log="$out/test_core_tsan.log"
 start=$SECONDS
 status=0
-TSAN_OPTIONS="halt_on_error=0 exitcode=66 second_deadlock_stack=1 history_size=7 suppressions=$root/test/sanitize/tsan.supp" \
+TSAN_OPTIONS="halt_on_error=0 exitcode=66 second_deadlock_stack=1 history_size=7 print_suppressions=1 suppressions=$root/test/sanitize/tsan.supp" \
   "$out/test_core_tsan" --gtest_brief=1 >"$log" 2>&1 || status=$?
 tail -n 3 "$log"
 echo "ran the core tests under ThreadSanitizer in $((SECONDS - start)) s (log: $log)"
