@@ -27,6 +27,7 @@
 #include <aloam_nodelet/SaveTrajectory.h>
 
 #include "aloam_nodelet/ros/conversions.h"
+#include "aloam_nodelet/ros/stage_messages.h"
 #include "aloam_nodelet/sim/long_drive.h"
 
 namespace
@@ -60,6 +61,27 @@ struct StampCollector
   {
     std::lock_guard<std::mutex> lock(mutex);
     return stamps.size();
+  }
+};
+
+// The stamps of a stage's own messages (StampedFeatureSet, StampedOdometryFrame), seen in this process.
+struct StageStamps
+{
+  std::mutex mutex;
+  std::condition_variable cv;
+  std::set<ros::Time> stamps;
+
+  template <typename M>
+  void cb(const boost::shared_ptr<const M>& msg)
+  {
+    std::lock_guard<std::mutex> lock(mutex);
+    stamps.insert(msg->header.stamp);
+    cv.notify_all();
+  }
+  bool waitFor(const ros::Time& stamp)
+  {
+    std::unique_lock<std::mutex> lock(mutex);
+    return cv.wait_for(lock, std::chrono::duration<double>(kAnswerTimeout), [&] { return stamps.count(stamp) > 0; });
   }
 };
 
@@ -228,8 +250,11 @@ int main(int argc, char** argv)
   std::printf("nodelet library: %s\n", loadedNodeletLibrary().c_str());
 
   StampCollector answers, mapped;
+  StageStamps features, frames;
   Counter clouds;
   std::vector<ros::Subscriber> subs = {
+    nh.subscribe("laser_features", 10, &StageStamps::cb<aloam::ros_io::StampedFeatureSet>, &features),
+    nh.subscribe("laser_odom_frame", 10, &StageStamps::cb<aloam::ros_io::StampedOdometryFrame>, &frames),
     nh.subscribe("aft_mapped_to_init_high_frec", 100, &StampCollector::cb, &answers),
     nh.subscribe("aft_mapped_to_init", 100, &StampCollector::cb, &mapped),
     // The optional outputs (converted only while someone listens) run too.
@@ -306,19 +331,27 @@ int main(int argc, char** argv)
             " trajectories saved");
   check(clouds.received.load() > 0, std::to_string(clouds.received.load()) + " optional clouds received");
 
-  // Unloading with sweeps in flight: a burst of sweeps, not waited for, then each stage is unloaded
-  // while the ones upstream of it still work (mapping first), and the loader goes with the rest.
+  // Unloading with sweeps in flight: a burst of sweeps, not waited for; then each stage is unloaded just as
+  // a sweep reaches it (mapping first, once odometry has published the frame; odometry once registration
+  // has published the features; registration right after a sweep is sent), so that its callback is likely
+  // running while the unload destroys it. Waits that run out only lose that overlap, not a check.
   for (int k = sweeps; k < sweeps + 4; ++k)
   {
     points_pub.publish(sweepMsg(k));
   }
   const auto unload_start = std::chrono::steady_clock::now();
-  for (auto it = stages.rbegin(); it != stages.rend(); ++it)
+  const auto sendAndWait = [&](int k, StageStamps& upstream)
   {
-    check(loader->unload(it->first), "unload " + it->first);
-    // The next burst reaches what is still loaded.
-    points_pub.publish(sweepMsg(sweeps + 4 + static_cast<int>(it - stages.rbegin())));
-  }
+    const auto msg = sweepMsg(k);
+    points_pub.publish(msg);
+    upstream.waitFor(msg->header.stamp);
+  };
+  sendAndWait(sweeps + 4, frames);
+  check(loader->unload("/laser_mapping"), "unload /laser_mapping");
+  sendAndWait(sweeps + 5, features);
+  check(loader->unload("/laser_odometry"), "unload /laser_odometry");
+  points_pub.publish(sweepMsg(sweeps + 6));
+  check(loader->unload("/scan_registration"), "unload /scan_registration");
   loader.reset();
   std::printf("unloaded in %.2f s\n",
               std::chrono::duration<double>(std::chrono::steady_clock::now() - unload_start).count());
