@@ -46,6 +46,8 @@ run_check tools/check_offline_kitti.sh "$bin" "$ALOAM_DATA/kitti00_101" "$checks
 run_check tools/check_hard_cases.sh "$bin" "$checks_out/hard_cases"
 run_check fuzz/run_fuzz.sh "$checks_out/fuzz" 45
 run_check sanitize/run_sanitized_core_tests.sh "$checks_out/sanitize"
+run_check sanitize/run_tsan_core_tests.sh "$checks_out/tsan_core"
+run_check sanitize/run_tsan_nodelet_pipeline.sh "$checks_out/tsan_nodelets"
 run_check longrun/run_long_drive.sh "$bin" "$checks_out/long_drive" "${ALOAM_LONG_DRIVE_SWEEPS:-18000}"
 
 passed=$((total - errors - failures - skipped + tools_passed))

@@ -31,6 +31,9 @@ namespace aloam_nodelet
 {
 class LaserOdometryNodelet : public nodelet::Nodelet
 {
+public:
+  ~LaserOdometryNodelet() override;
+
 private:
   void onInit() override;
   void featuresCb(const aloam::ros_io::StampedFeatureSet::ConstPtr& msg);
@@ -69,6 +72,15 @@ private:
   // stopped (a running index waited for) first.
   aloam::Executor::Job indexer_;
 };
+
+LaserOdometryNodelet::~LaserOdometryNodelet()
+{
+  // The manager's callback threads go on through an unload, so a sweep's callback may still be running here
+  // (ThreadSanitizer saw featuresCb request the indexer while the unload destroyed it). Shutting the
+  // subscribers down waits for a callback in progress; only then do the indexer and the publishers go.
+  features_sub_.shutdown();
+  mapped_sub_.shutdown();
+}
 
 std::vector<double> LaserOdometryNodelet::beamTable(const ros::NodeHandle& pnh) const
 {

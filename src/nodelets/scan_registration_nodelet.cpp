@@ -23,6 +23,9 @@ namespace aloam_nodelet
 {
 class ScanRegistrationNodelet : public nodelet::Nodelet
 {
+public:
+  ~ScanRegistrationNodelet() override;
+
 private:
   void onInit() override;
   void pointsCb(const sensor_msgs::PointCloud2::ConstPtr& msg);
@@ -47,6 +50,13 @@ private:
   ros::Publisher features_pub_;
   ros::Publisher sharp_pub_, less_sharp_pub_, flat_pub_, less_flat_pub_, full_pub_;
 };
+
+ScanRegistrationNodelet::~ScanRegistrationNodelet()
+{
+  // A sweep's callback may still be running on the manager's threads during an unload, and the publishers
+  // it uses are declared after the subscriber (destroyed first): shutting the subscriber down waits for it.
+  points_sub_.shutdown();
+}
 
 aloam::SensorModel ScanRegistrationNodelet::sensorModel(const std::string& preset, int beams) const
 {

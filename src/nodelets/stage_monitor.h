@@ -26,8 +26,7 @@ public:
     updater_ = std::make_unique<diagnostic_updater::Updater>(nh, pnh, name);
     updater_->setHardwareID("aloam_nodelet");
     updater_->add(name, [this](diagnostic_updater::DiagnosticStatusWrapper& s) { produce(s); });
-    timer_ =
-        nh.createTimer(ros::Duration(updater_->getPeriod()), [this](const ros::TimerEvent&) { updater_->update(); });
+    timer_ = nh.createTimer(ros::Duration(updater_->getPeriod()), [this](const ros::TimerEvent&) { update(); });
   }
 
   /// Records one processed frame that took `milliseconds`, then lets the updater publish if it is due.
@@ -47,13 +46,22 @@ public:
       max_ms_ = std::max(max_ms_, milliseconds);
       mean_ms_ += (milliseconds - mean_ms_) / static_cast<double>(frames_);
     }
+    update();
+  }
+
+private:
+  // diagnostic_updater::Updater::update() reads and writes its next publishing time without a lock, and a
+  // stage calls it from two threads: the timer's callback and the thread that processed the frame (the
+  // mapping worker is not the nodelet's callback thread).
+  void update()
+  {
+    std::lock_guard<std::mutex> lock(update_mutex_);
     if (updater_)
     {
       updater_->update();
     }
   }
 
-private:
   void produce(diagnostic_updater::DiagnosticStatusWrapper& s)
   {
     s.summary(diagnostic_msgs::DiagnosticStatus::OK, "ok");
@@ -75,6 +83,7 @@ private:
     }
   }
 
+  std::mutex update_mutex_;  // taken before the updater's own lock and mutex_ (produce runs inside update)
   std::mutex mutex_;
   std::size_t frames_ = 0;
   double last_ms_ = 0.0, mean_ms_ = 0.0, max_ms_ = 0.0, rate_hz_ = 0.0;

@@ -123,7 +123,7 @@ class TestLaserMappingNodelet(u.ScratchTestCase):
         missing = [i for i, a in enumerate(answers) if a is None]
         self.assertEqual(missing, [], "frames without aft_mapped_to_init")
         for i, stamp in enumerate(self.stamps):
-            high = self.high.wait_for(stamp.to_nsec(), 2.0)
+            high = self.high.wait_for(stamp.to_nsec(), 10.0)
             self.assertIsNotNone(high, "no aft_mapped_to_init_high_frec for frame %d" % i)
             for msg in (answers[i], high):
                 self.assertEqual(msg.header.stamp, stamp)
@@ -236,7 +236,7 @@ class TestLaserMappingNodelet(u.ScratchTestCase):
         # A new map: the first frame after the reset keeps its odometry pose (no correction, empty map).
         np.testing.assert_allclose(u.pose_to_matrix(answers[0].pose.pose), self.odom[10], atol=1e-5,
                                    err_msg="the first pose after ~reset is the odometry pose")
-        high = self.high.wait_for(stamps[0].to_nsec(), 2.0)
+        high = self.high.wait_for(stamps[0].to_nsec(), 10.0)
         self.assertIsNotNone(high)
         gap = np.linalg.norm(u.pose_to_matrix(high.pose.pose)[:3, 3] - self.odom[10][:3, 3])
         print("first frame after ~reset: high-rate answer %.3f m from the mapped answer" % gap, flush=True)

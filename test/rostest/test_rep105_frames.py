@@ -7,6 +7,8 @@ With a static base_link -> velodyne extrinsic published here:
 - map -> base_link equals the mapped sensor pose seen through the extrinsic, T_bs * P * T_bs^-1, at every
   answered stamp (so map -> odom carries the mapping correction, odom -> base_link the odometry)
 """
+import time
+
 import numpy as np
 import rospy
 import rostest
@@ -21,6 +23,13 @@ EXTRINSIC_XYZ = (0.5, 0.0, 1.7)
 EXTRINSIC_YAW = 0.1
 MAX_POSITION_DIFF_M = 1e-3
 MAX_ROTATION_DIFF = 1e-4  # Frobenius norm of the rotation difference
+
+
+def wait_for_connections(publisher, count, timeout):
+    deadline = time.time() + timeout
+    while publisher.get_num_connections() < count and time.time() < deadline and not rospy.is_shutdown():
+        time.sleep(0.05)
+    return publisher.get_num_connections() >= count
 
 
 def transform_matrix(t):
@@ -51,10 +60,16 @@ class TestRep105Frames(u.ScratchTestCase):
         clouds = u.read_bag_clouds(bag)
         replayer = u.Replayer(ns="", timeout=10.0)
         self.assertEqual(replayer.wait_ready(), [], "pipeline not wired")
-        rospy.sleep(0.5)  # the static transform reaches the mapping nodelet
+        # The latched extrinsic reaches a subscriber as soon as it is connected: wait for the connections of
+        # our own listener and of the manager (the mapping nodelet's listener) instead of a fixed sleep.
+        self.assertTrue(wait_for_connections(static.pub_tf, 2, 30.0), "the extrinsic reached no nodelet")
         answers = replayer.play(clouds)
         self.assertEqual([i for i, a in enumerate(answers) if a is None], [], "unanswered sweeps")
-        rospy.sleep(1.0)  # the last transforms arrive
+        # The transforms of the last sweep leave after its answer: wait for them (only a loss runs out).
+        last = answers[-1].header.stamp
+        for frames in (("map", "odom"), ("odom", "base_link")):
+            self.assertTrue(buffer.can_transform(frames[0], frames[1], last, rospy.Duration(30.0)),
+                            "no %s -> %s at the last answered stamp" % frames)
 
         self.assertFalse(buffer.can_transform("camera_init", "aft_mapped", rospy.Time(0)),
                          "A-LOAM frames published in rep105 mode")
