@@ -37,6 +37,9 @@ using aloam::ros_io::StampedOdometryFrame;
 
 class LaserMappingNodelet : public nodelet::Nodelet
 {
+public:
+  ~LaserMappingNodelet() override;
+
 private:
   void onInit() override;
   void frameCb(const StampedOdometryFrame::ConstPtr& msg);
@@ -73,6 +76,13 @@ private:
   // Runs updateMap() after the pose is out; declared last, so stopped first.
   aloam::Executor::Job updater_;
 };
+
+LaserMappingNodelet::~LaserMappingNodelet()
+{
+  // As in odometry: a frame's callback may still run during the unload, and it requests the lane job, which
+  // is destroyed first. Shutting the subscriber down waits for that callback.
+  frame_sub_.shutdown();
+}
 
 void LaserMappingNodelet::onInit()
 {
