@@ -285,7 +285,11 @@ MappingResult LaserMapping::registerFrame(const OdometryFrame& frame)
   // next sweep's motion (deskew_first_late), or the map starts with the first sweep whose motion is known.
   pending_insert_ = !(frame.distorted && map_.cubeCount() == 0 && !config_.insert_distorted_first);
   pending_pose_ = pose;
-  if (held_first_ && pending_insert_)
+  if (frozen_)
+  {
+    pending_insert_ = false;
+  }
+  else if (held_first_ && pending_insert_)
   {
     releaseHeldFirst(frame);
   }
@@ -308,7 +312,7 @@ void LaserMapping::updateMap(MappingResult& result)
     insert(pending_pose_);
     pending_insert_ = false;
   }
-  if (config_.eviction_radius > 0.0)
+  if (config_.eviction_radius > 0.0 && !frozen_)
   {
     result.evicted_cubes = map_.evictBeyond(pending_pose_.t, config_.eviction_radius);
     evicted_total_ += result.evicted_cubes;
@@ -317,6 +321,74 @@ void LaserMapping::updateMap(MappingResult& result)
   result.map_corners = map_.cornerCount();
   result.map_surfs = map_.surfCount();
   result.cubes = map_.cubeCount();
+}
+
+void LaserMapping::loadMap(const Cloud& corners, const Cloud& surfs)
+{
+  reset();
+  // Without leaf sizes the map keeps every point as given; the leaf sizes then only index them.
+  map_.setLeafSizes(0.0, 0.0);
+  map_.insertCorners(corners);
+  map_.insertSurfs(surfs);
+  map_.setLeafSizes(config_.corner_leaf_size, config_.surf_leaf_size);
+}
+
+void LaserMapping::prepareSubmapAround(const Eigen::Vector3d& position)
+{
+  const CubeIndex centre = map_.indexOf(position);
+  if (!submap_ready_ || centre != submap_centre_)
+  {
+    prepareSubmap(centre);
+  }
+}
+
+MatchFitness LaserMapping::fitness(const Cloud& corners, const Cloud& surfs, const Pose& pose, double inlier_residual,
+                                   int stride) const
+{
+  MatchFitness f;
+  double residual_sum = 0.0;
+  const std::size_t step = static_cast<std::size_t>(std::max(stride, 1));
+  auto count = [&](double residual)
+  {
+    ++f.matched;
+    residual_sum += residual;
+    f.inliers += residual < inlier_residual;
+  };
+  if (static_cast<int>(submap_corners_.size()) >= config_.min_map_corners)
+  {
+    for (std::size_t i = 0; i < corners.size(); i += step)
+    {
+      ++f.tried;
+      LineMatch m;
+      if (matchEdge(corners.points[i], pose, m))
+      {
+        count((pose * m.point - m.a).cross(m.direction).norm());
+      }
+    }
+  }
+  else
+  {
+    f.tried += static_cast<int>((corners.size() + step - 1) / step);
+  }
+  if (static_cast<int>(submap_surfs_.size()) >= config_.min_map_surfs)
+  {
+    for (std::size_t i = 0; i < surfs.size(); i += step)
+    {
+      ++f.tried;
+      PlaneMatch m;
+      if (matchPlane(surfs.points[i], pose, m))
+      {
+        count(std::fabs(m.normal.dot(pose * m.point) + m.d));
+      }
+    }
+  }
+  else
+  {
+    f.tried += static_cast<int>((surfs.size() + step - 1) / step);
+  }
+  f.inlier_share = f.tried > 0 ? static_cast<double>(f.inliers) / f.tried : 0.0;
+  f.mean_residual = f.matched > 0 ? residual_sum / f.matched : 0.0;
+  return f;
 }
 
 }  // namespace aloam

@@ -50,15 +50,14 @@ void Pipeline::reset()
   stamps_.reset();
 }
 
-PipelineOutput Pipeline::process(const Cloud& cloud, double stamp, bool has_ring, bool has_time)
+bool Pipeline::track(const Cloud& cloud, double stamp, bool has_ring, bool has_time, PipelineOutput& out)
 {
-  PipelineOutput out;
   out.stamp_verdict = stamps_.check(static_cast<std::int64_t>(std::llround(stamp * 1e9)));
   const StampAction action = actionFor(out.stamp_verdict);
   if (!action.process)
   {
     out.status = PipelineStatus::kDroppedStamp;
-    return out;
+    return false;
   }
   if (action.reset)
   {
@@ -77,14 +76,37 @@ PipelineOutput Pipeline::process(const Cloud& cloud, double stamp, bool has_ring
   if (!usable)
   {
     out.status = PipelineStatus::kRejectedInput;
-    return out;
+    return false;
   }
 
   start = Clock::now();
   out.odometry = odometry_.track(features);
   out.timings.odometry_ms = msSince(start);
+  return true;
+}
 
-  start = Clock::now();
+PipelineOutput Pipeline::processOdometry(const Cloud& cloud, double stamp, bool has_ring, bool has_time)
+{
+  PipelineOutput out;
+  if (track(cloud, stamp, has_ring, has_time, out))
+  {
+    const auto start = Clock::now();
+    odometry_.indexLast();
+    out.timings.update_ms = msSince(start);
+    out.status = PipelineStatus::kOk;
+  }
+  return out;
+}
+
+PipelineOutput Pipeline::process(const Cloud& cloud, double stamp, bool has_ring, bool has_time)
+{
+  PipelineOutput out;
+  if (!track(cloud, stamp, has_ring, has_time, out))
+  {
+    return out;
+  }
+
+  auto start = Clock::now();
   out.mapping = mapping_.registerFrame(out.odometry);
   out.timings.mapping_ms = msSince(start);
 

@@ -99,6 +99,16 @@ struct MappingResult
   std::size_t evicted_cubes = 0;  ///< cubes evicted while processing this frame
 };
 
+/// How well a sweep at a pose fits the submap: the figures localization decides with.
+struct MatchFitness
+{
+  int tried = 0;               ///< points offered (edge and plane points)
+  int matched = 0;             ///< points that found a line or plane in the map
+  int inliers = 0;             ///< matched within the inlier residual
+  double inlier_share = 0.0;   ///< inliers / tried
+  double mean_residual = 0.0;  ///< mean distance of the matched points to their line or plane (m)
+};
+
 class LaserMapping
 {
 public:
@@ -129,9 +139,29 @@ public:
   std::size_t totalEvictedCubes() const { return evicted_total_; }
   void reset();
 
+  // Localization in a saved map (see Localizer). None of these is used while mapping.
+
+  /// Replaces the map by these points (map frame), kept as they are (no voxel merging).
+  void loadMap(const Cloud& corners, const Cloud& surfs);
+  /// Frozen: registerFrame() never queues the sweep for the map and updateMap() never inserts nor
+  /// evicts; it only indexes the submap around the new pose.
+  void setFrozen(bool frozen) { frozen_ = frozen; }
+  bool frozen() const { return frozen_; }
+  /// The correction the next registerFrame() predicts with (map <- odometry world).
+  void setCorrection(const Pose& correction) { correction_ = correction; }
+  /// Indexes the submap around a position unless it is indexed already.
+  void prepareSubmapAround(const Eigen::Vector3d& position);
+  /// The fit of sensor-frame clouds at `pose` against the current submap, every `stride`th point.
+  MatchFitness fitness(const Cloud& corners, const Cloud& surfs, const Pose& pose, double inlier_residual,
+                       int stride = 1) const;
+  /// The downsampled clouds of the last registerFrame().
+  const Cloud& registeredCorners() const { return corner_stack_; }
+  const Cloud& registeredSurfs() const { return surf_stack_; }
+
 private:
   LaserMappingConfig config_;
   std::shared_ptr<Executor> executor_;
+  bool frozen_ = false;
   CubeMap map_;
   Pose correction_;
   std::size_t evicted_total_ = 0;

@@ -61,6 +61,9 @@ public:
   /// The stamp goes through the nodelets' time policy first: dropped when duplicate or late, a reset when
   /// it jumps back, the motion prediction restarted after a gap.
   PipelineOutput process(const Cloud& cloud, double stamp, bool has_ring, bool has_time);
+  /// Registration and odometry only, under the same time policy (localization runs its own matching
+  /// against a saved map); `mapping` of the output stays empty.
+  PipelineOutput processOdometry(const Cloud& cloud, double stamp, bool has_ring, bool has_time);
 
   void reset();
   const ScanRegistration& registration() const { return registration_; }
@@ -74,6 +77,9 @@ private:
   LaserOdometry odometry_;
   LaserMapping mapping_;
   StampCheck stamps_;
+
+  /// The time policy, registration and odometry's track(); false if the sweep was dropped or rejected.
+  bool track(const Cloud& cloud, double stamp, bool has_ring, bool has_time, PipelineOutput& out);
 };
 
 }  // namespace aloam
