@@ -1,13 +1,17 @@
 // aloam_offline: runs the LOAM pipeline over a KITTI sequence folder or a rosbag, frame by frame, and
-// writes the mapped trajectory, the map and per-stage timings.
+// writes the mapped trajectory, the map and per-stage timings; or localizes the sweeps in a saved map.
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <iomanip>
 #include <iostream>
 #include <memory>
 #include <optional>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -18,6 +22,8 @@
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 
+#include "aloam_nodelet/core/localizer.h"
+#include "aloam_nodelet/core/map_file.h"
 #include "aloam_nodelet/core/pipeline.h"
 #include "aloam_nodelet/eval/timing_stats.h"
 #include "aloam_nodelet/eval/trajectory_io.h"
@@ -32,14 +38,29 @@ constexpr const char* kUsage =
     "usage: aloam_offline (--kitti DIR | --bag FILE --topic TOPIC) --sensor PRESET --trajectory OUT.txt\n"
     "                     [--tum OUT.tum] [--map OUT.pcd] [--deskew] [--minimum-range M] [--max-frames N]\n"
     "                     [--keep-every N] [--baseline] [--odometry-trajectory OUT.txt]\n"
-    "                     [--nearby-elevation-deg DEG]\n"
+    "                     [--nearby-elevation-deg DEG] [--save-map OUT.pcd] [--start-frame N]\n"
+    "       aloam_offline (--kitti DIR | --bag FILE --topic TOPIC) --sensor PRESET --trajectory OUT.txt\n"
+    "                     --localize MAP.pcd [--initial-pose \"x y z roll pitch yaw\"] [--global]\n"
+    "                     [--localization-log OUT.txt] [--map-after OUT.pcd] [--start-frame N]\n"
     "\n"
     "  --kitti DIR        KITTI odometry sequence folder: DIR/velodyne/*.bin (+ DIR/times.txt)\n"
     "  --bag FILE         rosbag with sensor_msgs/PointCloud2 on --topic\n"
     "  --sensor PRESET    VLP16 | HDL32 | HDL64 | VLP32C | OS1_64 | OS0_64 | OS1_128\n"
     "  --trajectory OUT   mapped lidar pose of every frame relative to the first, KITTI 3x4 rows\n"
     "  --tum OUT          the same poses in TUM format (stamp tx ty tz qx qy qz qw)\n"
-    "  --map OUT.pcd      the feature map at the end (binary PCD)\n"
+    "  --map OUT.pcd      the feature map at the end (binary PCD, x y z intensity time ring)\n"
+    "  --save-map OUT.pcd the map for localization: PCD of x y z label (1 edge, 2 plane) + OUT.pcd.yaml\n"
+    "  --start-frame N    begin at frame N (odometry starts there)\n"
+    "  --localize MAP.pcd localize every sweep in MAP (never changed) instead of mapping; --trajectory then\n"
+    "                     holds the map <- lidar pose of every frame from --start-frame (the last known one\n"
+    "                     while no pose is known)\n"
+    "  --initial-pose \"x y z roll pitch yaw\"\n"
+    "                     map <- lidar at the first frame (m, rad; yaw * pitch * roll)\n"
+    "  --global           no initial pose: search the whole map for it (global localization)\n"
+    "  --localization-log OUT\n"
+    "                     per frame: frame stamp answered state inlier_share mean_residual matched tried\n"
+    "                     fits searched candidates search_ms localize_ms x y z roll pitch yaw\n"
+    "  --map-after OUT.pcd the localizer's map after the run, as --save-map writes it\n"
     "  --odometry-trajectory OUT\n"
     "                     odometry's pose of every frame (before mapping's correction), KITTI 3x4 rows\n"
     "  --deskew           correct motion within each sweep (KITTI scans are already corrected: off)\n"
@@ -60,6 +81,9 @@ constexpr const char* kUsage =
 struct Options
 {
   std::string kitti_dir, bag_file, topic, sensor, trajectory, tum, map, odometry_trajectory;
+  std::string save_map, localize, initial_pose, localization_log, map_after;
+  bool global = false;
+  std::size_t start_frame = 0;
   bool deskew = false;
   bool baseline = false;
   std::size_t keep_every = 1;
@@ -206,6 +230,40 @@ void showProgress(std::size_t done, std::size_t total, double seconds, bool tty)
   }
 }
 
+/// "x y z roll pitch yaw" (m, rad) as map <- lidar.
+aloam::Pose parsePose(const std::string& text)
+{
+  std::istringstream in(text);
+  double v[6];
+  for (double& x : v)
+  {
+    if (!(in >> x))
+    {
+      throw std::invalid_argument("--initial-pose needs six numbers \"x y z roll pitch yaw\", got \"" + text + "\"");
+    }
+  }
+  const Eigen::Quaterniond q = Eigen::AngleAxisd(v[5], Eigen::Vector3d::UnitZ()) *
+                               Eigen::AngleAxisd(v[4], Eigen::Vector3d::UnitY()) *
+                               Eigen::AngleAxisd(v[3], Eigen::Vector3d::UnitX());
+  return aloam::Pose(q, Eigen::Vector3d(v[0], v[1], v[2]));
+}
+
+/// Mapped positions at least 1 m apart: the sidecar's trajectory (candidates for global localization).
+std::vector<Eigen::Vector3d> thinnedPositions(const aloam::eval::Trajectory& trajectory)
+{
+  std::vector<Eigen::Vector3d> out;
+  for (const Eigen::Isometry3d& pose : trajectory)
+  {
+    if (out.empty() || (pose.translation() - out.back()).norm() >= 1.0)
+    {
+      out.push_back(pose.translation());
+    }
+  }
+  return out;
+}
+
+int localize(const Options& opt, const aloam::PipelineConfig& config, FrameSource& source, std::size_t end);
+
 bool parse(int argc, char** argv, Options& o)
 {
   for (int i = 1; i < argc; ++i)
@@ -236,6 +294,23 @@ bool parse(int argc, char** argv, Options& o)
       value(o.map);
     else if (arg == "--odometry-trajectory")
       value(o.odometry_trajectory);
+    else if (arg == "--save-map")
+      value(o.save_map);
+    else if (arg == "--localize")
+      value(o.localize);
+    else if (arg == "--initial-pose")
+      value(o.initial_pose);
+    else if (arg == "--localization-log")
+      value(o.localization_log);
+    else if (arg == "--map-after")
+      value(o.map_after);
+    else if (arg == "--global")
+      o.global = true;
+    else if (arg == "--start-frame")
+    {
+      value(number);
+      o.start_frame = static_cast<std::size_t>(std::stoul(number));
+    }
     else if (arg == "--deskew")
       o.deskew = true;
     else if (arg == "--baseline")
@@ -300,6 +375,19 @@ bool parse(int argc, char** argv, Options& o)
   if (o.sensor.empty() || o.trajectory.empty())
   {
     throw std::invalid_argument("--sensor and --trajectory are required");
+  }
+  if (o.localize.empty() &&
+      (!o.initial_pose.empty() || o.global || !o.localization_log.empty() || !o.map_after.empty()))
+  {
+    throw std::invalid_argument("--initial-pose, --global, --localization-log and --map-after need --localize");
+  }
+  if (!o.localize.empty() && (!o.map.empty() || !o.save_map.empty()))
+  {
+    throw std::invalid_argument("--localize does not map: no --map or --save-map");
+  }
+  if (!o.localize.empty() && o.initial_pose.empty() && !o.global)
+  {
+    throw std::invalid_argument("--localize needs --initial-pose or --global");
   }
   return true;
 }
@@ -377,7 +465,18 @@ int main(int argc, char** argv)
     return 1;
   }
 
-  const std::size_t frames = opt.max_frames > 0 ? std::min(opt.max_frames, source->size()) : source->size();
+  const std::size_t end =
+      opt.max_frames > 0 ? std::min(opt.start_frame + opt.max_frames, source->size()) : source->size();
+  if (opt.start_frame >= end)
+  {
+    std::cerr << "aloam_offline: --start-frame " << opt.start_frame << " is past the last frame\n";
+    return 2;
+  }
+  if (!opt.localize.empty())
+  {
+    return localize(opt, config, *source, end);
+  }
+  const std::size_t frames = end - opt.start_frame;
   std::cerr << "aloam_offline: " << frames << " frames, sensor " << opt.sensor
             << (opt.deskew ? ", deskew on" : ", deskew off") << (opt.baseline ? ", baseline (81f6493) handling" : "")
             << "\n";
@@ -392,7 +491,7 @@ int main(int argc, char** argv)
   Frame frame;
   const bool tty = isatty(fileno(stderr));
   const auto start = std::chrono::steady_clock::now();
-  for (std::size_t i = 0; i < frames; ++i)
+  for (std::size_t i = opt.start_frame; i < end; ++i)
   {
     aloam::Pose pose = trajectory.empty() ? aloam::Pose() : aloam::Pose(trajectory.back());
     aloam::Pose odometry_pose = odometry_trajectory.empty() ? aloam::Pose() : aloam::Pose(odometry_trajectory.back());
@@ -438,7 +537,8 @@ int main(int argc, char** argv)
     trajectory.push_back(pose.isometry());
     odometry_trajectory.push_back(odometry_pose.isometry());
     stamps.push_back(frame.stamp);
-    showProgress(i + 1, frames, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), tty);
+    showProgress(i + 1 - opt.start_frame, frames,
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), tty);
   }
 
   try
@@ -465,6 +565,20 @@ int main(int argc, char** argv)
       }
       std::cout << "map: " << opt.map << " (" << map.size() << " points)\n";
     }
+    if (!opt.save_map.empty())
+    {
+      aloam::Cloud corners, surfs;
+      aloam::splitMap(pipeline.mapping().map(), corners, surfs);
+      aloam::MapMetadata metadata;
+      metadata.sensor = opt.sensor;
+      metadata.cube_size = config.mapping.cube_size;
+      metadata.corner_leaf_size = config.mapping.corner_leaf_size;
+      metadata.surf_leaf_size = config.mapping.surf_leaf_size;
+      metadata.trajectory = thinnedPositions(trajectory);
+      aloam::writeMapFile(opt.save_map, corners, surfs, metadata);
+      std::cout << "saved map: " << opt.save_map << " (" << corners.size() << " edge, " << surfs.size()
+                << " plane points) + " << aloam::mapSidecarPath(opt.save_map) << "\n";
+    }
   }
   catch (const std::exception& e)
   {
@@ -488,3 +602,149 @@ int main(int argc, char** argv)
   std::cout << "total:        " << summary(total_ms) << "\n";
   return rejected == frames ? 1 : 0;
 }
+
+namespace
+{
+int localize(const Options& opt, const aloam::PipelineConfig& config, FrameSource& source, std::size_t end)
+{
+  aloam::MapData map;
+  try
+  {
+    map = aloam::readMapFile(opt.localize);
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "aloam_offline: " << e.what() << "\n";
+    return 1;
+  }
+  for (const std::string& w : map.warnings)
+  {
+    std::cerr << "aloam_offline: warning: " << w << "\n";
+  }
+  aloam::LocalizerConfig lc;
+  lc.mapping = config.mapping;
+  lc.global_localization = opt.global;
+  aloam::Localizer localizer(lc);
+  localizer.loadMap(map);
+  std::cerr << "aloam_offline: localizing frames " << opt.start_frame << "-" << end - 1 << " in " << opt.localize
+            << " (" << map.corners.size() << " edge, " << map.surfs.size() << " plane points, "
+            << localizer.globalCandidates().size() << " global candidate positions)\n";
+  if (!opt.initial_pose.empty())
+  {
+    localizer.setInitialPose(parsePose(opt.initial_pose));
+  }
+
+  std::unique_ptr<std::ofstream> log;
+  if (!opt.localization_log.empty())
+  {
+    log = std::make_unique<std::ofstream>(opt.localization_log);
+    *log << "# frame stamp answered state inlier_share mean_residual matched tried fits searched candidates "
+            "search_ms localize_ms x y z roll pitch yaw\n";
+  }
+  aloam::Pipeline pipeline(config);
+  aloam::eval::Trajectory trajectory;
+  std::vector<double> stamps, localize_ms;
+  std::size_t answered = 0, localized = 0, lost = 0, rejected = 0;
+  std::optional<std::size_t> first_localized;
+  double first_search_ms = 0.0;
+  Frame frame;
+  aloam::Pose pose;
+  const bool tty = isatty(fileno(stderr));
+  const auto start = std::chrono::steady_clock::now();
+  for (std::size_t i = opt.start_frame; i < end; ++i)
+  {
+    if (!source.read(i, frame))
+    {
+      ++rejected;
+      trajectory.push_back(pose.isometry());
+      stamps.push_back(frame.stamp);
+      continue;
+    }
+    const aloam::PipelineOutput out =
+        pipeline.processOdometry(frame.cloud, frame.stamp, frame.has_ring, frame.has_time);
+    if (out.status != aloam::PipelineStatus::kOk)
+    {
+      ++rejected;
+      trajectory.push_back(pose.isometry());
+      stamps.push_back(frame.stamp);
+      continue;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    const aloam::LocalizationResult r = localizer.process(out.odometry);
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    localize_ms.push_back(ms);
+    if (r.searched && first_search_ms == 0.0)
+    {
+      first_search_ms = r.search_ms;
+    }
+    if (r.answered)
+    {
+      pose = r.pose;
+      ++answered;
+    }
+    localized += r.state == aloam::LocalizationState::kLocalized;
+    lost += r.state == aloam::LocalizationState::kLost;
+    if (r.state == aloam::LocalizationState::kLocalized && !first_localized)
+    {
+      first_localized = i;
+    }
+    trajectory.push_back(pose.isometry());
+    stamps.push_back(frame.stamp);
+    if (log)
+    {
+      const Eigen::Matrix3d R = pose.q.toRotationMatrix();
+      const Eigen::Vector3d ypr(std::atan2(R(1, 0), R(0, 0)), std::asin(std::clamp(-R(2, 0), -1.0, 1.0)),
+                                std::atan2(R(2, 1), R(2, 2)));
+      *log << i << " " << std::fixed << std::setprecision(6) << frame.stamp << " " << r.answered << " "
+           << aloam::toString(r.state) << " " << r.fitness.inlier_share << " " << r.fitness.mean_residual << " "
+           << r.fitness.matched << " " << r.fitness.tried << " " << r.fits << " " << r.searched << " " << r.candidates
+           << " " << r.search_ms << " " << ms << " " << pose.t.x() << " " << pose.t.y() << " " << pose.t.z() << " "
+           << ypr[2] << " " << ypr[1] << " " << ypr[0] << "\n";
+    }
+    if (std::getenv("ALOAM_OFFLINE_VERBOSE"))
+    {
+      std::cerr << "frame " << i << " " << aloam::toString(r.state) << " inliers " << r.fitness.inlier_share
+                << " residual " << r.fitness.mean_residual << " mapping status " << static_cast<int>(r.mapping.status)
+                << " matches " << r.mapping.corner_matches << "/" << r.mapping.plane_matches << " constraint "
+                << r.mapping.constraint << " odometry " << out.odometry.pose.t.transpose() << " pose "
+                << pose.t.transpose() << "\n";
+    }
+    showProgress(i + 1 - opt.start_frame, end - opt.start_frame,
+                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), tty);
+  }
+  try
+  {
+    aloam::eval::writeKittiPoses(opt.trajectory, trajectory);
+    std::cout << "trajectory: " << opt.trajectory << " (" << trajectory.size() << " poses)\n";
+    if (!opt.tum.empty())
+    {
+      aloam::eval::writeTumTrajectory(opt.tum, trajectory, stamps);
+    }
+    if (!opt.map_after.empty())
+    {
+      aloam::Cloud corners, surfs;
+      aloam::splitMap(localizer.mapping().map(), corners, surfs);
+      aloam::MapMetadata metadata = map.metadata;
+      aloam::writeMapFile(opt.map_after, corners, surfs, metadata);
+      std::cout << "map after: " << opt.map_after << "\n";
+    }
+  }
+  catch (const std::exception& e)
+  {
+    std::cerr << "aloam_offline: " << e.what() << "\n";
+    return 1;
+  }
+  if (log)
+  {
+    std::cout << "localization log: " << opt.localization_log << "\n";
+  }
+  const std::size_t frames = end - opt.start_frame;
+  std::cout << "frames: " << frames << "  answered: " << answered << "  rejected: " << rejected
+            << "  localized: " << localized << "  lost: " << lost
+            << "  final state: " << aloam::toString(localizer.state()) << "\n";
+  std::cout << "first localized frame: " << (first_localized ? std::to_string(*first_localized) : std::string("none"))
+            << "  first search: " << first_search_ms << " ms\n";
+  std::cout << "localization: " << summary(localize_ms) << "\n";
+  return answered == 0 ? 1 : 0;
+}
+}  // namespace
