@@ -172,6 +172,19 @@ std::string mapSidecarPath(const std::string& pcd)
   return pcd + ".yaml";
 }
 
+std::vector<Eigen::Vector3d> thinnedPositions(const std::vector<Eigen::Vector3d>& positions, double spacing)
+{
+  std::vector<Eigen::Vector3d> out;
+  for (const Eigen::Vector3d& p : positions)
+  {
+    if (out.empty() || (p - out.back()).norm() >= spacing)
+    {
+      out.push_back(p);
+    }
+  }
+  return out;
+}
+
 void splitMap(const CubeMap& map, Cloud& corners, Cloud& surfs)
 {
   corners.clear();
@@ -209,7 +222,17 @@ void writeMapFile(const std::string& pcd, const Cloud& corners, const Cloud& sur
   labelled.width = static_cast<std::uint32_t>(labelled.points.size());
   labelled.height = 1;
   labelled.is_dense = true;
-  if (pcl::io::savePCDFileBinary(pcd, labelled) != 0)
+  // PCL reports some write errors by return value and others by exception.
+  bool written = false;
+  try
+  {
+    written = pcl::io::savePCDFileBinary(pcd, labelled) == 0;
+  }
+  catch (const std::exception& e)
+  {
+    throw MapFileError("cannot write map " + pcd + ": " + e.what());
+  }
+  if (!written)
   {
     throw MapFileError("cannot write map " + pcd);
   }

@@ -9,8 +9,6 @@
 
 #include <dynamic_reconfigure/server.h>
 #include <nodelet/nodelet.h>
-#include <pcl/io/pcd_io.h>
-#include <pcl/io/impl/pcd_io.hpp>
 #include <pluginlib/class_list_macros.hpp>
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
@@ -22,6 +20,7 @@
 
 #include "aloam_nodelet/core/executor.h"
 #include "aloam_nodelet/core/latest_slot.h"
+#include "aloam_nodelet/core/map_file.h"
 #include "aloam_nodelet/core/mapping_session.h"
 #include "aloam_nodelet/eval/trajectory_io.h"
 #include "aloam_nodelet/ros/stage_messages.h"
@@ -286,27 +285,35 @@ void LaserMappingNodelet::reconfigureCb(const LaserMappingConfig& c)
 
 bool LaserMappingNodelet::saveMapCb(SaveMap::Request& request, SaveMap::Response& response)
 {
-  aloam::Cloud all;
-  session_->withMap([&all](const aloam::CubeMap& map) { map.collectAll(all); });  // with the last frame
-  if (all.empty())
+  // A map localization can load again (aloam::writeMapFile): edge and plane points told apart, and a
+  // sidecar with the frame, the parameters and the mapped positions (1 m apart).
+  aloam::Cloud corners, surfs;
+  session_->withMap([&](const aloam::CubeMap& map) { aloam::splitMap(map, corners, surfs); });  // with the last frame
+  aloam::MapMetadata metadata;
+  metadata.frame_id = outputs_.mapFrame();
+  getPrivateNodeHandle().param<std::string>("sensor", metadata.sensor, "");
+  const aloam::LaserMappingConfig config = session_->mappingConfig();
+  metadata.cube_size = config.cube_size;
+  metadata.corner_leaf_size = config.corner_leaf_size;
+  metadata.surf_leaf_size = config.surf_leaf_size;
+  std::vector<Eigen::Vector3d> positions;
+  for (const aloam::Pose& pose : session_->trajectory().poses)
   {
-    response.success = false;
-    response.message = "the map is empty";
-    return true;
+    positions.push_back(pose.t);
   }
-  // PCL reports some write errors by return value and others by exception.
-  bool written = false;
+  metadata.trajectory = aloam::thinnedPositions(positions, 1.0);
   try
   {
-    written = pcl::io::savePCDFileBinary(request.path, all) == 0;
+    aloam::writeMapFile(request.path, corners, surfs, metadata);  // throws with the reason
+    response.success = true;
+    response.message = "wrote " + std::to_string(corners.size() + surfs.size()) + " points to " + request.path +
+                       " (+ " + aloam::mapSidecarPath(request.path) + ")";
   }
   catch (const std::exception& e)
   {
-    NODELET_WARN("save_map: %s", e.what());
+    response.success = false;
+    response.message = e.what();
   }
-  response.success = written;
-  response.message =
-      written ? "wrote " + std::to_string(all.size()) + " points to " + request.path : "cannot write " + request.path;
   return true;
 }
 

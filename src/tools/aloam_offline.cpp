@@ -78,6 +78,9 @@ constexpr const char* kUsage =
     "  --odometry-min-constraint X, --mapping-min-constraint X\n"
     "                     the stages' min_constraint (directions weaker than X are degenerate)\n";
 
+// Spacing of the mapped positions a saved map's sidecar keeps (m): candidates for global localization.
+constexpr double kTrajectorySpacing = 1.0;
+
 struct Options
 {
   std::string kitti_dir, bag_file, topic, sensor, trajectory, tum, map, odometry_trajectory;
@@ -246,20 +249,6 @@ aloam::Pose parsePose(const std::string& text)
                                Eigen::AngleAxisd(v[4], Eigen::Vector3d::UnitY()) *
                                Eigen::AngleAxisd(v[3], Eigen::Vector3d::UnitX());
   return aloam::Pose(q, Eigen::Vector3d(v[0], v[1], v[2]));
-}
-
-/// Mapped positions at least 1 m apart: the sidecar's trajectory (candidates for global localization).
-std::vector<Eigen::Vector3d> thinnedPositions(const aloam::eval::Trajectory& trajectory)
-{
-  std::vector<Eigen::Vector3d> out;
-  for (const Eigen::Isometry3d& pose : trajectory)
-  {
-    if (out.empty() || (pose.translation() - out.back()).norm() >= 1.0)
-    {
-      out.push_back(pose.translation());
-    }
-  }
-  return out;
 }
 
 int localize(const Options& opt, const aloam::PipelineConfig& config, FrameSource& source, std::size_t end);
@@ -574,7 +563,12 @@ int main(int argc, char** argv)
       metadata.cube_size = config.mapping.cube_size;
       metadata.corner_leaf_size = config.mapping.corner_leaf_size;
       metadata.surf_leaf_size = config.mapping.surf_leaf_size;
-      metadata.trajectory = thinnedPositions(trajectory);
+      std::vector<Eigen::Vector3d> positions;
+      for (const Eigen::Isometry3d& pose : trajectory)
+      {
+        positions.push_back(pose.translation());
+      }
+      metadata.trajectory = aloam::thinnedPositions(positions, kTrajectorySpacing);
       aloam::writeMapFile(opt.save_map, corners, surfs, metadata);
       std::cout << "saved map: " << opt.save_map << " (" << corners.size() << " edge, " << surfs.size()
                 << " plane points) + " << aloam::mapSidecarPath(opt.save_map) << "\n";

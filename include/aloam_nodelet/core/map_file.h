@@ -51,6 +51,10 @@ public:
 /// `pcd` with ".yaml" appended: the sidecar of a map file.
 std::string mapSidecarPath(const std::string& pcd);
 
+/// The positions, each kept one at least `spacing` from the one kept before it: the mapped trajectory a
+/// sidecar stores.
+std::vector<Eigen::Vector3d> thinnedPositions(const std::vector<Eigen::Vector3d>& positions, double spacing);
+
 /// The edge and plane points of every cube of `map`.
 void splitMap(const CubeMap& map, Cloud& corners, Cloud& surfs);
 
