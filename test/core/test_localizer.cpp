@@ -393,6 +393,56 @@ TEST(LocalizerTest, InitialPoseResetsAtAnyTime)
   EXPECT_LE(ts::translationError(run.results.back().pose, run.truth.back()), maxConvergedError());
 }
 
+// Lost and found: sweeps that do not fit the map (here: taken 150 m further down the street, beyond the
+// map, while odometry goes on) make the localizer lost; it keeps answering with the odometry-propagated pose,
+// and once the sweeps fit again it is localized on its own, without a new initial pose.
+TEST(LocalizerTest, LostInUnmappedSpaceRecoversOnItsOwn)
+{
+  constexpr int kAwayFrom = 4, kBackAt = 10, kSweeps = 16;
+  const SensorModel sensor = ts::preset("VLP16");
+  Pipeline pipeline(pipelineConfig(sensor));
+  Localizer localizer;
+  localizer.loadMap(mappedStreet().map);
+  localizer.setInitialPose(truthAt(0));
+  std::vector<LocalizationResult> results;
+  for (int k = 0; k < kSweeps; ++k)
+  {
+    const double t = (k + 1) * kPeriod;
+    const PipelineOutput out = pipeline.processOdometry(ts::staticSweep(sensor, otherDrive(t)), t, true, true);
+    ASSERT_EQ(out.status, PipelineStatus::kOk);
+    OdometryFrame frame = out.odometry;
+    if (k >= kAwayFrom && k < kBackAt)
+    {
+      Pipeline elsewhere(pipelineConfig(sensor));
+      const Eigen::Isometry3d away = ts::streetPose(kMapStartX + 200.0, -3.0, M_PI);
+      const PipelineOutput far = elsewhere.processOdometry(ts::staticSweep(sensor, away), t, true, true);
+      frame.corners = far.odometry.corners;
+      frame.surfs = far.odometry.surfs;
+    }
+    results.push_back(localizer.process(frame));
+  }
+  EXPECT_EQ(results[kAwayFrom - 1].state, LocalizationState::kLocalized);
+  EXPECT_EQ(results[kBackAt - 1].state, LocalizationState::kLost);
+  for (int k = kAwayFrom; k < kBackAt; ++k)
+  {
+    // Answered all along, with the odometry-propagated pose (noise-free odometry here: close to the truth).
+    EXPECT_TRUE(results[k].answered);
+    EXPECT_LE(ts::translationError(results[k].pose, truthAt(k)), maxConvergedError()) << "sweep " << k;
+  }
+  EXPECT_EQ(results.back().state, LocalizationState::kLocalized);
+  EXPECT_LE(ts::translationError(results.back().pose, truthAt(kSweeps - 1)), maxConvergedError());
+  int back = -1;
+  for (int k = kBackAt; k < kSweeps && back < 0; ++k)
+  {
+    back = results[k].state == LocalizationState::kLocalized ? k - kBackAt + 1 : -1;
+  }
+  std::printf(
+      "[ measured ] away: inlier share %.2f, residual %.3f m -> %s; localized again %d sweeps after "
+      "the sweeps fit again\n",
+      results[kBackAt - 1].fitness.inlier_share, results[kBackAt - 1].fitness.mean_residual,
+      toString(results[kBackAt - 1].state), back);
+}
+
 // No initial pose: the global search over the map's trajectory finds the pose by itself.
 TEST(LocalizerTest, GlobalLocalizationFindsThePose)
 {
