@@ -2,6 +2,7 @@
 // once and never changed, with a fitness measure, a localized / lost state and pose searches.
 #pragma once
 
+#include <cmath>
 #include <cstddef>
 #include <string>
 #include <vector>
@@ -41,8 +42,8 @@ struct LocalizerConfig
   /// each scored by the fitness of every search_stride-th point; the best search_refine are registered.
   double search_radius = 2.0;
   double search_step = 1.0;
-  double search_yaw = 0.2618;        // 15 deg
-  double search_yaw_step = 0.08727;  // 5 deg
+  double search_yaw = 15.0 * M_PI / 180.0;
+  double search_yaw_step = 5.0 * M_PI / 180.0;
   /// Inlier residual of the coarse scoring (m): a candidate up to half a step off still scores.
   double search_inlier_residual = 0.5;
   int search_stride = 4;
@@ -51,9 +52,9 @@ struct LocalizerConfig
 
   /// No initial pose: search the whole map (global localization) on the first frames.
   bool global_localization = false;
-  double global_spacing = 5.0;       ///< candidate positions at least this far apart (m)
-  double global_yaw_step = 0.17453;  ///< 10 deg
-  int global_refine = 6;             ///< best coarse candidates searched around and registered
+  double global_spacing = 5.0;  ///< candidate positions at least this far apart (m)
+  double global_yaw_step = 10.0 * M_PI / 180.0;
+  int global_refine = 6;  ///< best coarse candidates searched around and registered
   /// Without a trajectory in the map file, candidates are a grid of this spacing over the ground (the
   /// lowest plane points of each cell), raised by the sensor height (m).
   double sensor_height = 1.73;
