@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <map>
+#include <sstream>
 #include <utility>
 
 #include "aloam_nodelet/core/voxel_filter.h"
@@ -32,6 +33,28 @@ const char* toString(LocalizationState state)
       return "lost";
   }
   return "unknown";
+}
+
+std::optional<Pose> poseFromXyzRpy(const std::string& text)
+{
+  std::istringstream in(text);
+  double v[6];
+  for (double& x : v)
+  {
+    if (!(in >> x))
+    {
+      return std::nullopt;
+    }
+  }
+  std::string rest;
+  if (in >> rest)
+  {
+    return std::nullopt;
+  }
+  const Eigen::Quaterniond q = Eigen::AngleAxisd(v[5], Eigen::Vector3d::UnitZ()) *
+                               Eigen::AngleAxisd(v[4], Eigen::Vector3d::UnitY()) *
+                               Eigen::AngleAxisd(v[3], Eigen::Vector3d::UnitX());
+  return Pose(q, Eigen::Vector3d(v[0], v[1], v[2]));
 }
 
 Localizer::Localizer(LocalizerConfig config) : config_(std::move(config)), mapping_(config_.mapping)

@@ -9,7 +9,6 @@
 #include <memory>
 #include <mutex>
 #include <optional>
-#include <sstream>
 #include <string>
 #include <thread>
 
@@ -172,19 +171,9 @@ void LaserLocalizationNodelet::onInit()
   pnh.param<std::string>("initial_pose", initial, "");
   if (!initial.empty())
   {
-    std::istringstream in(initial);
-    double v[6];
-    bool ok = true;
-    for (double& x : v)
+    if (const auto pose = aloam::poseFromXyzRpy(initial))
     {
-      ok = ok && static_cast<bool>(in >> x);
-    }
-    if (ok)
-    {
-      const Eigen::Quaterniond q = Eigen::AngleAxisd(v[5], Eigen::Vector3d::UnitZ()) *
-                                   Eigen::AngleAxisd(v[4], Eigen::Vector3d::UnitY()) *
-                                   Eigen::AngleAxisd(v[3], Eigen::Vector3d::UnitX());
-      localizer_->setInitialPose(aloam::Pose(q, Eigen::Vector3d(v[0], v[1], v[2])));
+      localizer_->setInitialPose(*pose);
       NODELET_INFO("initial pose %s (map frame)", initial.c_str());
     }
     else

@@ -11,7 +11,6 @@
 #include <iostream>
 #include <memory>
 #include <optional>
-#include <sstream>
 #include <string>
 #include <vector>
 
@@ -231,24 +230,6 @@ void showProgress(std::size_t done, std::size_t total, double seconds, bool tty)
   {
     std::fputc('\n', stderr);
   }
-}
-
-/// "x y z roll pitch yaw" (m, rad) as map <- lidar.
-aloam::Pose parsePose(const std::string& text)
-{
-  std::istringstream in(text);
-  double v[6];
-  for (double& x : v)
-  {
-    if (!(in >> x))
-    {
-      throw std::invalid_argument("--initial-pose needs six numbers \"x y z roll pitch yaw\", got \"" + text + "\"");
-    }
-  }
-  const Eigen::Quaterniond q = Eigen::AngleAxisd(v[5], Eigen::Vector3d::UnitZ()) *
-                               Eigen::AngleAxisd(v[4], Eigen::Vector3d::UnitY()) *
-                               Eigen::AngleAxisd(v[3], Eigen::Vector3d::UnitX());
-  return aloam::Pose(q, Eigen::Vector3d(v[0], v[1], v[2]));
 }
 
 int localize(const Options& opt, const aloam::PipelineConfig& config, FrameSource& source, std::size_t end);
@@ -625,7 +606,14 @@ int localize(const Options& opt, const aloam::PipelineConfig& config, FrameSourc
             << localizer.globalCandidates().size() << " global candidate positions)\n";
   if (!opt.initial_pose.empty())
   {
-    localizer.setInitialPose(parsePose(opt.initial_pose));
+    const auto initial = aloam::poseFromXyzRpy(opt.initial_pose);
+    if (!initial)
+    {
+      std::cerr << "aloam_offline: --initial-pose needs six numbers \"x y z roll pitch yaw\", got \""
+                << opt.initial_pose << "\"\n";
+      return 2;
+    }
+    localizer.setInitialPose(*initial);
   }
 
   std::unique_ptr<std::ofstream> log;

@@ -177,6 +177,18 @@ TEST(MapFileTest, BrokenFilesFailWithAClearMessage)
   fs::remove_all(dir);
 }
 
+TEST(LocalizerTest, InitialPoseTextIsXyzRollPitchYaw)
+{
+  const auto pose = poseFromXyzRpy(" 1.5 -2 0.25  0.1 -0.2 1.5 ");
+  ASSERT_TRUE(pose.has_value());
+  EXPECT_NEAR((pose->t - Eigen::Vector3d(1.5, -2.0, 0.25)).norm(), 0.0, 1e-12);
+  const Eigen::Isometry3d expected = ts::poseFrom(0, 0, 0, 1.5, -0.2, 0.1);
+  EXPECT_LT(ts::rotationErrorDeg(*pose, ts::toPose(expected)), 1e-9);
+  EXPECT_FALSE(poseFromXyzRpy("1 2 3 0 0").has_value());
+  EXPECT_FALSE(poseFromXyzRpy("1 2 3 0 0 x").has_value());
+  EXPECT_FALSE(poseFromXyzRpy("1 2 3 0 0 0 7").has_value());
+}
+
 TEST(MapFileTest, SplitMapKeepsEveryPointOfEachLayer)
 {
   CubeMap map(10.0, 0.0, 0.0);

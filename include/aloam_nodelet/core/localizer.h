@@ -4,6 +4,7 @@
 
 #include <cmath>
 #include <cstddef>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -69,6 +70,9 @@ enum class LocalizationState
 };
 
 const char* toString(LocalizationState state);
+
+/// "x y z roll pitch yaw" (m, rad; rotation yaw * pitch * roll) as a pose; none unless six numbers.
+std::optional<Pose> poseFromXyzRpy(const std::string& text);
 
 struct LocalizationResult
 {
