@@ -44,6 +44,10 @@ private:
   void frameCb(const aloam::ros_io::StampedOdometryFrame::ConstPtr& msg);
   void initialPoseCb(const geometry_msgs::PoseWithCovarianceStamped::ConstPtr& msg);
   void work();
+  /// An initial pose in the map frame: the sensor's (tf_mode aloam) or base_link's (rep105).
+  void setInitialPose(const aloam::Pose& pose);
+  void applyPendingBasePose();
+  void useInitialPose(const aloam::Pose& map_from_sensor);
   std::optional<aloam::Pose> lookup(const std::string& target, const std::string& source, const ros::Time& stamp);
   aloam::LocalizerConfig localizerParams(const ros::NodeHandle& pnh, const std::string& name) const;
 
@@ -74,6 +78,7 @@ private:
   aloam::Pose correction_;
   bool answered_ = false;
   std::string sensor_frame_;
+  std::optional<aloam::Pose> pending_base_pose_;  // rep105: an initial pose waiting for the extrinsic
 
   ros::Subscriber frame_sub_, initial_pose_sub_;
   ros::Publisher map_pub_;
@@ -173,7 +178,7 @@ void LaserLocalizationNodelet::onInit()
   {
     if (const auto pose = aloam::poseFromXyzRpy(initial))
     {
-      localizer_->setInitialPose(*pose);
+      setInitialPose(*pose);
       NODELET_INFO("initial pose %s (map frame)", initial.c_str());
     }
     else
@@ -272,25 +277,55 @@ void LaserLocalizationNodelet::initialPoseCb(const geometry_msgs::PoseWithCovari
     }
     pose = *to_map * pose;
   }
+  setInitialPose(pose);
+}
+
+void LaserLocalizationNodelet::setInitialPose(const aloam::Pose& pose)
+{
   if (rep105_)
   {
-    std::string sensor_frame;
+    // base_link's pose: converted once the sensor frame (from the first sweep) and its extrinsic are known.
     {
       std::lock_guard<std::mutex> lock(correction_mutex_);
-      sensor_frame = sensor_frame_;
+      pending_base_pose_ = pose;
     }
-    const auto base_from_sensor = sensor_frame.empty() || sensor_frame == base_frame_
-                                      ? std::optional<aloam::Pose>(aloam::Pose())
-                                      : lookup(base_frame_, sensor_frame, ros::Time(0));
-    if (!base_from_sensor)
-    {
-      NODELET_ERROR("initial pose ignored: %s <- %s unknown (no sweep yet, or no TF)", base_frame_.c_str(),
-                    sensor_frame.empty() ? "sensor" : sensor_frame.c_str());
-      return;
-    }
-    // base_link in REP 105's map -> the sensor in the map's own frame.
-    pose = aloam::toBaseFrame(base_from_sensor->inverse(), pose);
+    applyPendingBasePose();
+    return;
   }
+  useInitialPose(pose);
+}
+
+void LaserLocalizationNodelet::applyPendingBasePose()
+{
+  std::optional<aloam::Pose> base_pose;
+  std::string sensor_frame;
+  {
+    std::lock_guard<std::mutex> lock(correction_mutex_);
+    base_pose = pending_base_pose_;
+    sensor_frame = sensor_frame_;
+  }
+  if (!base_pose || sensor_frame.empty())
+  {
+    return;  // no pose waiting, or no sweep yet
+  }
+  const auto base_from_sensor = sensor_frame == base_frame_ ? std::optional<aloam::Pose>(aloam::Pose())
+                                                            : lookup(base_frame_, sensor_frame, ros::Time(0));
+  if (!base_from_sensor)
+  {
+    NODELET_WARN_THROTTLE(kThrottleSeconds, "initial pose waits for the transform %s <- %s", base_frame_.c_str(),
+                          sensor_frame.c_str());
+    return;
+  }
+  {
+    std::lock_guard<std::mutex> lock(correction_mutex_);
+    pending_base_pose_.reset();
+  }
+  // base_link in REP 105's map (base_link at the mapping's start) -> the sensor in the map's own frame.
+  useInitialPose(aloam::toBaseFrame(base_from_sensor->inverse(), *base_pose));
+}
+
+void LaserLocalizationNodelet::useInitialPose(const aloam::Pose& pose)
+{
   NODELET_INFO("initial pose (%.2f, %.2f, %.2f) yaw %.1f deg in %s", pose.t.x(), pose.t.y(), pose.t.z(),
                std::atan2(pose.q.toRotationMatrix()(1, 0), pose.q.toRotationMatrix()(0, 0)) * 180.0 / M_PI,
                outputs_.mapFrame().c_str());
@@ -321,6 +356,7 @@ void LaserLocalizationNodelet::frameCb(const aloam::ros_io::StampedOdometryFrame
     answered = answered_;
     sensor_frame_ = msg->sensor_frame_id;
   }
+  applyPendingBasePose();
   if (answered)
   {
     outputs_.publishHighRate(msg->header.stamp, corrected, msg->frame.pose, msg->sensor_frame_id);

@@ -13,6 +13,9 @@ the VLP-16 drive sweep by sweep:
 - /diagnostics of laser_localization says localized
 - then /initialpose 20 m off, stamped in aft_mapped (converted through TF): the last sweeps are still
   answered (odometry-propagated) and the state is lost, not localized
+With ~tf_mode rep105 (registered as a second test) a static base_link -> velodyne extrinsic is published,
+the initial poses are base_link's (in map, then 20 m ahead in base_link), and map -> base_link from TF must
+equal the answered sensor pose seen through the extrinsic.
 """
 import math
 import os
@@ -23,7 +26,8 @@ import time
 import numpy as np
 import rospy
 import rostest
-from geometry_msgs.msg import PoseWithCovarianceStamped
+import tf2_ros
+from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
 
 import aloam_rostest_utils as u
 
@@ -35,6 +39,35 @@ FIRST, WRONG_FROM, LAST = 30, 70, 80  # sweeps localized; the wrong initial pose
 # truth by its drift (0.41 m at worst along the mapped drive); measured here: 0.101 m, 0.28 deg (ATE 0.073 m).
 MAX_ERROR_M = 0.25
 MAX_ERROR_DEG = 1.0
+# rep105: a sensor 0.5 m ahead of and 1.7 m above base_link, turned 0.1 rad (as rep105_frames.test).
+EXTRINSIC_XYZ = (0.5, 0.0, 1.7)
+EXTRINSIC_YAW = 0.1
+
+
+def extrinsic_matrix():
+    m = np.eye(4)
+    m[:3, :3] = u.rot_z(EXTRINSIC_YAW)
+    m[:3, 3] = EXTRINSIC_XYZ
+    return m
+
+
+def publish_extrinsic():
+    b = extrinsic_matrix()
+    t = TransformStamped()
+    t.header.frame_id, t.child_frame_id = "base_link", "velodyne"
+    t.transform.translation.x, t.transform.translation.y, t.transform.translation.z = b[:3, 3]
+    (t.transform.rotation.x, t.transform.rotation.y, t.transform.rotation.z,
+     t.transform.rotation.w) = u.rot_to_quat(b[:3, :3])
+    broadcaster = tf2_ros.StaticTransformBroadcaster()
+    broadcaster.sendTransform(t)
+    return broadcaster
+
+
+def transform_matrix(t):
+    m = np.eye(4)
+    m[:3, :3] = u.quat_to_rot(t.rotation.x, t.rotation.y, t.rotation.z, t.rotation.w)
+    m[:3, 3] = [t.translation.x, t.translation.y, t.translation.z]
+    return m
 
 
 def initial_pose_msg(matrix, frame, stamp):
@@ -70,10 +103,10 @@ class TestLocalization(u.ScratchTestCase):
               flush=True)
         return pcd, truth[0]
 
-    def launch(self, pcd):
+    def launch(self, pcd, tf_mode):
         # Its own process group, ended by its id at the end.
         self.launched = subprocess.Popen(["roslaunch", "aloam_nodelet", "localization.launch", "map:=" + pcd,
-                                          "sensor:=VLP16", "rviz:=false", "output:=log"],
+                                          "sensor:=VLP16", "rviz:=false", "output:=log", "tf_mode:=" + tf_mode],
                                          stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT,
                                          start_new_session=True)
 
@@ -93,14 +126,23 @@ class TestLocalization(u.ScratchTestCase):
         truth = [np.linalg.inv(map_origin) @ m for m in u.bag_ground_truth(bag)[FIRST:LAST]]  # map <- sensor
         wrong_from = WRONG_FROM - FIRST
         diagnostics = u.DiagnosticsWatcher(history_keys=("state",))
-        self.launch(pcd)
+        tf_mode = rospy.get_param("~tf_mode", "aloam")
+        rep105 = tf_mode == "rep105"
+        b = extrinsic_matrix()
+        if rep105:
+            self.extrinsic = publish_extrinsic()
+            buffer = tf2_ros.Buffer(cache_time=rospy.Duration(120.0))
+            self.listener = tf2_ros.TransformListener(buffer)
+        self.launch(pcd, tf_mode)
         initial_pub = rospy.Publisher("/initialpose", PoseWithCovarianceStamped, queue_size=1, latch=True)
         replayer = u.Replayer(timeout=30.0)
         self.assertEqual(replayer.wait_ready(timeout=90.0), [], "localization.launch not wired")
         self.assertEqual(u.wait_for_graph(subscribed=["/initialpose"], timeout=30.0), [])
         self.assertTrue(u.wait_connected(initial_pub, timeout=15.0))
 
-        initial_pub.publish(initial_pose_msg(offset(truth[0], 0.8, 0.6, 10.0), "camera_init", rospy.Time(0)))
+        start = offset(truth[0], 0.8, 0.6, 10.0)  # the sensor's, in camera_init
+        initial_pub.publish(initial_pose_msg(b @ start @ np.linalg.inv(b), "map", rospy.Time(0)) if rep105 else
+                            initial_pose_msg(start, "camera_init", rospy.Time(0)))
         time.sleep(1.0)  # the pose is taken before the first sweep
         t0 = time.time()
         answers = replayer.play(clouds[:wrong_from], log_every=10)
@@ -124,11 +166,24 @@ class TestLocalization(u.ScratchTestCase):
         self.assertLessEqual(errors[4:].max(), MAX_ERROR_M)
         self.assertLessEqual(angles[4:].max(), MAX_ERROR_DEG)
         self.assertEqual(status[2].get("state"), "localized")
+        if rep105:
+            # map -> odom -> base_link is the answered sensor pose seen through the extrinsic.
+            checked = 0
+            for answer in answers[5::5]:
+                stamp = answer.header.stamp
+                if not buffer.can_transform("map", "base_link", stamp, rospy.Duration(2.0)):
+                    continue
+                tf_pose = transform_matrix(buffer.lookup_transform("map", "base_link", stamp).transform)
+                expected = b @ u.pose_to_matrix(answer.pose.pose) @ np.linalg.inv(b)
+                np.testing.assert_allclose(tf_pose[:3, 3], expected[:3, 3], atol=2e-3)
+                checked += 1
+            print("RESULT rep105: map -> base_link matched the answers at %d stamps" % checked, flush=True)
+            self.assertGreater(checked, 3)
 
-        # 20 m ahead of the current pose, stamped in aft_mapped: converted through TF to camera_init.
+        # 20 m ahead of the current pose, stamped in aft_mapped (base_link in rep105): converted through TF.
         wrong = np.eye(4)
         wrong[0, 3] = 20.0
-        initial_pub.publish(initial_pose_msg(wrong, "aft_mapped", answers[-1].header.stamp))
+        initial_pub.publish(initial_pose_msg(wrong, "base_link" if rep105 else "aft_mapped", answers[-1].header.stamp))
         time.sleep(1.0)
         later = replayer.play(clouds[wrong_from:], log_every=0)
         self.assertEqual([i for i, a in enumerate(later) if a is None], [], "lost sweeps must still be answered")
@@ -136,9 +191,9 @@ class TestLocalization(u.ScratchTestCase):
         self.assertIsNotNone(status)
         jump = np.linalg.norm(u.pose_to_matrix(later[0].pose.pose)[:3, 3] - truth[wrong_from][:3, 3])
         states = diagnostics.values_seen("laser_localization", "state")
-        print("RESULT 20 m off (in aft_mapped): first answer %.1f m from the truth; state %s (level %d: %s)"
+        print("RESULT 20 m off (in the body frame): first answer %.1f m from the truth; state %s (level %d: %s)"
               % (jump, status[2].get("state"), status[0], status[1]), flush=True)
-        self.assertGreater(jump, 10.0, "the pose in aft_mapped was not applied through TF")
+        self.assertGreater(jump, 10.0, "the pose in the body frame was not applied through TF")
         self.assertEqual(status[2].get("state"), "lost")
         self.assertEqual(status[0], 1, "lost is a WARN")
         self.assertIn("localized", states)
