@@ -30,7 +30,7 @@ touch "$out/obj/.stamp"
 # Link the objects of today's sources only (an old object of a removed source may still be there).
 objects=()
 for src in "${sources[@]}"; do objects+=("$out/obj/$(echo "$src" | tr / _).o"); done
-g++ "${flags[@]}" "${objects[@]}" -lceres -lglog -lpcl_common -lgtest -lgtest_main -pthread -o "$out/test_core_tsan"
+g++ "${flags[@]}" "${objects[@]}" -lceres -lglog -lpcl_common -lpcl_io -lgtest -lgtest_main -pthread -o "$out/test_core_tsan"
 echo "built the core tests with ThreadSanitizer in $((SECONDS - start)) s"
 
 # Every report is printed (halt_on_error=0) and makes the process exit 66 at the end; the log is also
