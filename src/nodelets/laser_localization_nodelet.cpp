@@ -88,6 +88,10 @@ private:
 
 LaserLocalizationNodelet::~LaserLocalizationNodelet()
 {
+  // As in mapping and odometry: a callback may still run during the unload; shutting the subscribers down
+  // waits for it, so none hands a frame to the worker stopped below or outlives the members it uses.
+  frame_sub_.shutdown();
+  initial_pose_sub_.shutdown();
   {
     std::lock_guard<std::mutex> lock(queue_mutex_);
     stop_ = true;
