@@ -51,7 +51,7 @@ done
   _ -std=c++17 -g -O1 -I "$root/include" -isystem "$ws/devel/include" -isystem /usr/include/eigen3 \
   -isystem /usr/include/pcl-1.13
 clang++ "${flags[@]}" -isystem "$ws/devel/include" "$root/test/fuzz/fuzz_stage_messages.cpp" "$out"/stage_obj/*.o \
-  -lceres -lglog -lroscpp_serialization -lrostime -lcpp_common -lpthread -o "$out/fuzz_stage_messages"
+  -lceres -lglog -lpcl_io -lpcl_common -lroscpp_serialization -lrostime -lcpp_common -lpthread -o "$out/fuzz_stage_messages"
 "$out/fuzz_stage_messages" "$out/stage_corpus" -max_total_time="$stage_seconds" -rss_limit_mb=2048 \
   -print_final_stats=1 -artifact_prefix="$out/stage_" 2>&1 | tail -n 12
 echo "PASSED fuzzing the stage messages for ${stage_seconds} s"
