@@ -304,16 +304,21 @@ LocalizationResult Localizer::process(const OdometryFrame& frame)
   mapping_.updateMap(r);
   const bool ok = r.status != MappingStatus::kMapTooSmall && fits(f, state_ == LocalizationState::kLocalized);
   const Pose registered = r.pose * frame.pose.inverse();
+  // A fitting frame after none: localizing from its registered pose.
+  const auto startLocalizing = [&]
+  {
+    correction_ = registered;
+    state_ = LocalizationState::kLocalizing;
+    good_frames_ = 1;
+    bad_frames_ = 0;
+  };
   switch (state_)
   {
     case LocalizationState::kUninitialized:
       // The global search's best, registered: taken only if it fits, else the search runs again later.
       if (ok)
       {
-        correction_ = registered;
-        state_ = LocalizationState::kLocalizing;
-        good_frames_ = 1;
-        bad_frames_ = 0;
+        startLocalizing();
       }
       else
       {
@@ -340,10 +345,7 @@ LocalizationResult Localizer::process(const OdometryFrame& frame)
       ++lost_frames_;
       if (ok)
       {
-        correction_ = registered;
-        state_ = LocalizationState::kLocalizing;
-        good_frames_ = 1;
-        bad_frames_ = 0;
+        startLocalizing();
       }
       else
       {
