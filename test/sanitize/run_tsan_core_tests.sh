@@ -15,10 +15,8 @@ flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer -fsanitize=thread
 shopt -s nullglob
 tests=()
 for src in "$root"/test/core/test_*.cpp; do
-  case "$(basename "$src")" in
-    test_kitti_accuracy.cpp | test_param_defaults.cpp) ;;
-    *) tests+=("$src") ;;
-  esac
+  name="$(basename "$src")"
+  [[ "$name" == test_kitti_accuracy.cpp || "$name" == test_param_defaults.cpp ]] || tests+=("$src")
 done
 sources=("$root"/src/core/*.cpp "$root"/src/sim/*.cpp "$root"/src/eval/*.cpp "${tests[@]}")
 start=$SECONDS
