@@ -22,6 +22,7 @@
 #include <tf2_ros/transform_broadcaster.h>
 #include <tf2_ros/transform_listener.h>
 
+#include "aloam_nodelet/core/latest_slot.h"
 #include "aloam_nodelet/core/localizer.h"
 #include "aloam_nodelet/core/map_file.h"
 #include "aloam_nodelet/core/rep105.h"
@@ -67,8 +68,7 @@ private:
 
   std::mutex queue_mutex_;
   std::condition_variable queue_cv_;
-  aloam::ros_io::StampedOdometryFrame::ConstPtr pending_;
-  std::size_t skipped_ = 0;
+  aloam::LatestSlot<aloam::ros_io::StampedOdometryFrame::ConstPtr> waiting_;  // the newest, not yet localized
   StampGuard stamps_;
   std::atomic<bool> stop_{ false };
   std::thread worker_;
@@ -196,7 +196,7 @@ void LaserLocalizationNodelet::onInit()
                 {
                   {
                     std::lock_guard<std::mutex> lock(queue_mutex_);
-                    s.add("frames skipped (localization behind)", skipped_);
+                    s.add("frames skipped (localization behind)", waiting_.skipped());
                     stamps_.report(s);
                   }
                   std::lock_guard<std::mutex> lock(core_mutex_);
@@ -369,13 +369,13 @@ void LaserLocalizationNodelet::frameCb(const aloam::ros_io::StampedOdometryFrame
   {
     return;
   }
-  std::lock_guard<std::mutex> lock(queue_mutex_);
-  if (pending_)
+  if (waiting_.put(msg))
   {
-    ++skipped_;
-    NODELET_WARN_THROTTLE(kThrottleSeconds, "localization is behind: %zu frames skipped so far", skipped_);
+    NODELET_WARN_THROTTLE(kThrottleSeconds, "localization is behind: %zu frames skipped so far", waiting_.skipped());
   }
-  pending_ = msg;
+  {
+    std::lock_guard<std::mutex> lock(queue_mutex_);  // the worker checks the slot under it: no lost wake-up
+  }
   queue_cv_.notify_one();
 }
 
@@ -386,12 +386,12 @@ void LaserLocalizationNodelet::work()
     aloam::ros_io::StampedOdometryFrame::ConstPtr msg;
     {
       std::unique_lock<std::mutex> lock(queue_mutex_);
-      queue_cv_.wait(lock, [this] { return stop_ || pending_; });
+      queue_cv_.wait(lock, [this] { return stop_ || !waiting_.empty(); });
       if (stop_)
       {
         return;
       }
-      msg.swap(pending_);
+      msg = *waiting_.take();
     }
     const auto start = std::chrono::steady_clock::now();
     aloam::LocalizationResult result;
