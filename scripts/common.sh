@@ -25,8 +25,6 @@ ALOAM_DEBIAN_PACKAGES=(
   python3-diagnostic-msgs python3-std-srvs python3-nav-msgs python3-sensor-msgs rosbash
   git clang-format python3-rosdep2
   libunwind-dev
-  # nanoflann: the kd-tree comparison build only (cmake -DALOAM_KDTREE_NANOFLANN=ON, see core/kd_tree.h).
-  libnanoflann-dev
 )
 
 aloam_log() { printf '\033[1m[aloam]\033[0m %s\n' "$*" >&2; }

@@ -3,10 +3,6 @@
 #include <algorithm>
 #include <cstdint>
 
-#ifdef ALOAM_KDTREE_NANOFLANN
-#include <nanoflann.hpp>
-#endif
-
 namespace aloam
 {
 namespace
@@ -15,13 +11,11 @@ namespace
 // best of 4, 8, 12, 16, 24, 32 on KITTI: odometry and mapping queries and the builds after the pose).
 constexpr int kLeafSize = 16;
 
-#ifndef ALOAM_KDTREE_NANOFLANN
 float squaredDistance(const float* a, const float* b)
 {
   const float dx = a[0] - b[0], dy = a[1] - b[1], dz = a[2] - b[2];
   return dx * dx + dy * dy + dz * dz;
 }
-#endif
 }  // namespace
 
 /// The best candidates so far, nearest first, at most `k` of them, all below the search radius.
@@ -67,30 +61,6 @@ private:
   std::vector<int>& index_;
   std::vector<float>& sq_distance_;
 };
-
-#ifndef ALOAM_KDTREE_NANOFLANN
-struct KdTree::Index
-{
-};
-void KdTree::IndexDeleter::operator()(Index* index) const
-{
-  delete index;
-}
-const char* KdTree::implementation()
-{
-  return "own";
-}
-KdTree::KdTree() = default;
-KdTree::~KdTree() = default;
-KdTree::KdTree(const KdTree& other) : entries_(other.entries_), nodes_(other.nodes_) {}
-KdTree::KdTree(KdTree&& other) noexcept = default;
-KdTree& KdTree::operator=(const KdTree& other)
-{
-  entries_ = other.entries_;
-  nodes_ = other.nodes_;
-  return *this;
-}
-KdTree& KdTree::operator=(KdTree&& other) noexcept = default;
 
 void KdTree::clear()
 {
@@ -235,149 +205,5 @@ int KdTree::nearestK(const Point& query, int k, float max_sq_distance, std::vect
   }
   return static_cast<int>(index.size());
 }
-#endif  // !ALOAM_KDTREE_NANOFLANN
-
-#ifdef ALOAM_KDTREE_NANOFLANN
-// nanoflann (Debian's libnanoflann-dev) behind the same interface, for comparing the two.
-struct KdTree::Index
-{
-  // nanoflann's data-source interface over the entries.
-  struct Source
-  {
-    const std::vector<Entry>* entries;
-    std::size_t kdtree_get_point_count() const { return entries->size(); }
-    float kdtree_get_pt(std::size_t i, std::size_t axis) const { return (*entries)[i].p[axis]; }
-    template <class Box>
-    bool kdtree_get_bbox(Box&) const
-    {
-      return false;
-    }
-  };
-  // nanoflann's result-set interface over Candidates; entry positions become cloud indices.
-  struct Results
-  {
-    const std::vector<Entry>& entries;
-    Candidates& found;
-    float worstDist() const { return found.bound(); }
-    bool full() const { return true; }
-    bool addPoint(float sq_distance, std::uint32_t entry)
-    {
-      found.offer(entries[entry].index, sq_distance);
-      return true;
-    }
-  };
-  using Tree =
-      nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, Source>, Source, 3, std::uint32_t>;
-
-  Source source;
-  Tree tree;
-  explicit Index(const std::vector<Entry>& entries)
-    : source{ &entries }
-    , tree(3, source,
-           nanoflann::KDTreeSingleIndexAdaptorParams(kLeafSize,
-                                                     nanoflann::KDTreeSingleIndexAdaptorFlags::SkipInitialBuildIndex))
-  {
-  }
-
-  void search(const std::vector<Entry>& entries, const Point& query, Candidates& found) const
-  {
-    const float q[3] = { query.x, query.y, query.z };
-    Results results{ entries, found };
-    tree.findNeighbors(results, q, nanoflann::SearchParams());
-  }
-};
-
-void KdTree::IndexDeleter::operator()(Index* index) const
-{
-  delete index;
-}
-const char* KdTree::implementation()
-{
-  return "nanoflann";
-}
-KdTree::KdTree() : index_(new Index(entries_)) {}
-KdTree::~KdTree() = default;
-KdTree::KdTree(const KdTree& other) : entries_(other.entries_), index_(new Index(entries_))
-{
-  rebuildIndex();
-}
-KdTree::KdTree(KdTree&& other) noexcept : KdTree(other) {}
-KdTree& KdTree::operator=(const KdTree& other)
-{
-  entries_ = other.entries_;
-  rebuildIndex();
-  return *this;
-}
-KdTree& KdTree::operator=(KdTree&& other) noexcept
-{
-  return *this = other;
-}
-
-void KdTree::rebuildIndex()
-{
-  if (!entries_.empty())
-  {
-    index_->tree.buildIndex();
-  }
-}
-
-void KdTree::clear()
-{
-  entries_.clear();
-}
-
-void KdTree::build(const Cloud& cloud)
-{
-  build(cloud, 0, static_cast<int>(cloud.size()));
-}
-
-void KdTree::build(const Cloud& cloud, int begin, int end)
-{
-  clear();
-  begin = std::max(begin, 0);
-  end = std::min(end, static_cast<int>(cloud.size()));
-  for (int i = begin; i < end; ++i)
-  {
-    const Point& p = cloud.points[i];
-    if (isFinite(p))
-    {
-      entries_.push_back(Entry{ { p.x, p.y, p.z }, i });
-    }
-  }
-  rebuildIndex();
-}
-
-int KdTree::nearest(const Point& query, float max_sq_distance, float* sq_distance, int skip) const
-{
-  thread_local std::vector<int> index;
-  thread_local std::vector<float> distance;
-  if (entries_.empty() || !isFinite(query))
-  {
-    return -1;
-  }
-  Candidates found(1, max_sq_distance, skip, index, distance);
-  index_->search(entries_, query, found);
-  if (index.empty())
-  {
-    return -1;
-  }
-  if (sq_distance != nullptr)
-  {
-    *sq_distance = distance.front();
-  }
-  return index.front();
-}
-
-int KdTree::nearestK(const Point& query, int k, float max_sq_distance, std::vector<int>& index,
-                     std::vector<float>& sq_distance) const
-{
-  Candidates found(std::max(k, 0), max_sq_distance, -1, index, sq_distance);
-  if (k > 0 && !entries_.empty() && isFinite(query))
-  {
-    index_->search(entries_, query, found);
-  }
-  return static_cast<int>(index.size());
-}
-#endif  // ALOAM_KDTREE_NANOFLANN
 
 }  // namespace aloam

@@ -1,6 +1,5 @@
 // aloam_kd_tree_bench: build and query time of KdTree on the clouds odometry and mapping index on
-// KITTI, with the queries they make. Prints figures; with libaloam_core built with
-// -DALOAM_KDTREE_NANOFLANN=ON it measures the nanoflann-backed variant on identical work.
+// KITTI, with the queries they make. Prints figures.
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -98,7 +97,6 @@ int main(int argc, char** argv)
     return 2;
   }
   const int repeats = argc > 2 ? std::max(1, std::stoi(argv[2])) : 5;
-  std::printf("KdTree: %s\n", aloam::KdTree::implementation());
   // Run the pipeline once and keep the clouds it indexes: each sweep's edge / plane features (odometry
   // indexes them for the next sweep, which queries with its sharp / flat points) and the submap around
   // each mapped pose (queried with the next sweep's downsampled features placed at its mapped pose).

@@ -2,7 +2,6 @@
 #pragma once
 
 #include <cstddef>
-#include <memory>
 #include <vector>
 
 #include "aloam_nodelet/core/point_types.h"
@@ -15,14 +14,16 @@ namespace aloam
 /// no closer point can exist, where an unbounded one keeps descending for a far k-th neighbour.
 /// Queries are const and may run concurrently; build() reuses its buffers.
 ///
-/// Against nanoflann 1.4.3 (Debian's libnanoflann-dev, same leaf size 16, behind -DALOAM_KDTREE_NANOFLANN=ON;
-/// issue 13), KITTI 00 0-100, loaded 2-core machine, medians of 7 interleaved runs of aloam_kd_tree_bench:
-/// build own/nanoflann 0.69/0.68 ms (odometry edges, 5.2k points), 3.9/4.0 (odometry planes, 29k), 4.3/4.7
-/// (map edges, 31k), 1.7/2.2 (map planes, 16k); per query 362/357 ns, 643/422 ns (nearest, 25 m^2), 834/905 ns,
-/// 561/801 ns (5 nearest, 2 m^2). End to end (aloam_bench --only kitti, 3+3 interleaved, thread CPU ms,
-/// medians) odometry 5.3/5.1, mapping 10.3/9.2, map update 11.4/11.0: within noise (registration, which
-/// has no tree, moved 5.3/4.9); poses identical (drift 1.270 %, ATE 0.150 m both). The submap's two builds
-/// are about a third of mapping's update (5.9 of 19.6 ms).
+/// Measured against nanoflann 1.4.3 (Debian's libnanoflann-dev, same leaf size 16, the same interface over
+/// it; issue 13, commit 5b53f83), KITTI 00 0-100, loaded 2-core machine, medians of 7 interleaved runs of
+/// aloam_kd_tree_bench, own/nanoflann: build 0.69/0.68 ms (odometry edges, 5.2k points), 3.9/4.0 (odometry
+/// planes, 29k), 4.3/4.7 (map edges, 31k), 1.7/2.2 (map planes, 16k); per query 362/357 ns, 643/422 ns
+/// (nearest, 25 m^2), 834/905 ns, 561/801 ns (5 nearest, 2 m^2). End to end (aloam_bench --only kitti,
+/// thread CPU ms) odometry 5.3/5.1, mapping 10.3/9.2: within noise; poses identical. Kept our own because
+/// nanoflann cannot be a dependency for most of our users: its rosdep key (`nanoflann`, ros/rosdistro
+/// #35852, 2023) resolves only from Ubuntu 22.04 on; Noetic's Ubuntu 20.04 has no package. The mapping
+/// queries, the most numerous on the pose path, are also faster here. Pruning by each node's tight point
+/// bounds instead of the split cells (as nanoflann does) measured no faster on these clouds.
 class KdTree
 {
 public:
@@ -31,9 +32,6 @@ public:
   /// Indexes the finite points of `cloud` with index in [begin, end). Query results are cloud indices.
   void build(const Cloud& cloud, int begin, int end);
   void clear();
-
-  /// "own" or "nanoflann" (the measurement variant, see below).
-  static const char* implementation();
 
   std::size_t size() const { return entries_.size(); }
   bool empty() const { return entries_.empty(); }
@@ -72,26 +70,6 @@ private:
   int buildNode(int begin, int end, const Box& box);
   /// `cell_sq`: squared distance from the query to the node's cell; `offset`: its part per axis.
   void search(int node, const float* q, Candidates& found, float cell_sq, float* offset) const;
-
-  // Measurement variant: kd_tree.cpp compiled with ALOAM_KDTREE_NANOFLANN answers from a nanoflann index
-  // (which refers to entries_ by address, hence the heap and the rebuild on copy) instead of nodes_.
-  // The layout here is the same either way, so only kd_tree.cpp changes between the two.
-public:
-  KdTree();
-  ~KdTree();
-  KdTree(const KdTree& other);
-  KdTree(KdTree&& other) noexcept;
-  KdTree& operator=(const KdTree& other);
-  KdTree& operator=(KdTree&& other) noexcept;
-
-private:
-  struct Index;
-  struct IndexDeleter
-  {
-    void operator()(Index* index) const;
-  };
-  std::unique_ptr<Index, IndexDeleter> index_;
-  void rebuildIndex();
 };
 
 }  // namespace aloam
