@@ -34,6 +34,11 @@ namespace aloam
 /// (scripts/bench.sh --live-only, 4 runs) latency median 32.5 / 32.2 / 33.3, p90 38.6 / 42.9 / 44.0.
 /// On a shared machine a spinning thread takes the core the stage needs; in the least loaded round the
 /// three were within 4 % (28.1 / 27.0 / 27.1). TBB measured more than 5 % slower, so it is not used.
+/// A bounded spin (helpers and the caller awake 0 / 50 / 200 us before sleeping) paced at 10 Hz, 3
+/// interleaved rounds, to the pose medians 30.9 / 30.0 / 29.4 ms: within run-to-run noise, so no spin.
+/// Wake-ups are not what pacing costs: a condition-variable wake takes about 20 us here after 70 ms idle,
+/// and a trace of the regions showed the chunks themselves slower when paced (the caller's share of the
+/// regions 12.8 ms per sweep back to back, 16.5 ms paced: caches and clocks cold after the idle gap).
 class Executor
 {
 public:
