@@ -607,6 +607,34 @@ TEST(LocalizerTest, OdometryRestartCarriesTheLastPoseOver)
   EXPECT_GT(blind_error, 2.0);
 }
 
+// Lost when odometry restarts: still lost, and the odometry-propagated pose goes on from the last answer
+// instead of jumping to where the old trajectory began.
+TEST(LocalizerTest, OdometryRestartWhileLostStaysLost)
+{
+  constexpr int kRestartAt = 6, kSweeps = 8;
+  std::vector<OdometryFrame> frames = otherDriveOdometry(0, kRestartAt);
+  const std::vector<OdometryFrame> restarted = otherDriveOdometry(kRestartAt, kSweeps);
+  frames.insert(frames.end(), restarted.begin(), restarted.end());
+  Localizer localizer;
+  localizer.loadMap(mappedStreet().map);
+  localizer.setInitialPose(offset(truthAt(0), Eigen::Vector3d(0.0, 20.0, 0.0), 0.0));
+  FrameAdmission admission;
+  std::vector<LocalizationResult> results;
+  for (const OdometryFrame& frame : frames)
+  {
+    const std::optional<LocalizationResult> r = admitAndProcess(admission, localizer, frame, frame.stamp);
+    ASSERT_TRUE(r);
+    results.push_back(*r);
+  }
+  ASSERT_EQ(results[kRestartAt - 1].state, LocalizationState::kLost);
+  const LocalizationResult& at = results[kRestartAt];
+  EXPECT_EQ(at.state, LocalizationState::kLost);
+  EXPECT_TRUE(at.answered);
+  // The new trajectory's first pose is the identity: the answer is the last one, carried over.
+  EXPECT_LT(ts::translationError(at.pose, results[kRestartAt - 1].pose), 1e-6);
+  EXPECT_EQ(results.back().state, LocalizationState::kLost);
+}
+
 // A looping bag: the stamps jump back to the data's start and odometry starts over with them. The tracking
 // state does not carry over: a localizer whose initial pose applied to the first frame (as ~initial_pose)
 // starts again from it; one given its pose later (as /initialpose) forgets it and, with the global search,
