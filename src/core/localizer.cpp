@@ -81,7 +81,42 @@ void Localizer::reset()
   correction_ = Pose();
   initial_pending_ = false;
   search_pending_ = false;
+  rebase_pending_ = false;
+  has_pose_ = false;
+  start_pose_.reset();
+  run_frames_ = 0;
   good_frames_ = bad_frames_ = lost_frames_ = 0;
+}
+
+void Localizer::restart(ResetReason reason)
+{
+  switch (reason)
+  {
+    case ResetReason::kNone:
+      break;
+    case ResetReason::kOdometryRestarted:
+      rebase_pending_ = true;
+      break;
+    case ResetReason::kJumpedBack:
+    {
+      const bool initial = initial_pending_;
+      const std::optional<Pose> start = start_pose_;
+      reset();
+      start_pose_ = start;
+      if (initial)
+      {
+        initial_pending_ = true;  // initial_pose_ is still the one given
+      }
+      else if (start)
+      {
+        setInitialPose(*start);
+      }
+      break;
+    }
+    case ResetReason::kRequested:
+      reset();
+      break;
+  }
 }
 
 void Localizer::setInitialPose(const Pose& map_from_sensor)
@@ -239,6 +274,11 @@ LocalizationResult Localizer::process(const OdometryFrame& frame)
   using Clock = std::chrono::steady_clock;
   LocalizationResult out;
   out.stamp = frame.stamp;
+  if (initial_pending_ && run_frames_ == 0)
+  {
+    start_pose_ = initial_pose_;  // a jump back to the data's start starts from it again
+  }
+  ++run_frames_;
   if (initial_pending_)
   {
     correction_ = initial_pose_ * frame.pose.inverse();
@@ -246,6 +286,23 @@ LocalizationResult Localizer::process(const OdometryFrame& frame)
     good_frames_ = bad_frames_ = lost_frames_ = 0;
     search_pending_ = true;
     initial_pending_ = false;
+    rebase_pending_ = false;  // the given pose is newer than the last answer
+  }
+  else if (rebase_pending_)
+  {
+    // Odometry restarted: the sensor is about where the last answer put it (one sweep of motion, or a few
+    // if frames were skipped, the search covers them), in odometry's new world.
+    rebase_pending_ = false;
+    if (has_pose_)
+    {
+      correction_ = last_pose_ * frame.pose.inverse();
+      if (state_ != LocalizationState::kLost)
+      {
+        state_ = LocalizationState::kLocalizing;
+        good_frames_ = bad_frames_ = 0;
+        search_pending_ = true;
+      }
+    }
   }
   const Pose kept = correction_;
   // Settled: localized, and the last frame fitted closely where odometry predicted it. Otherwise more
@@ -370,6 +427,8 @@ LocalizationResult Localizer::process(const OdometryFrame& frame)
   last_step_ = (r.pose.t - prediction.t).norm();
   out.answered = true;
   out.pose = correction_ * frame.pose;
+  has_pose_ = true;
+  last_pose_ = out.pose;
   out.correction = correction_;
   out.state = state_;
   out.fitness = f;

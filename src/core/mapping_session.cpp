@@ -16,7 +16,7 @@ std::vector<Pose> RecordedTrajectory::relativeToFirst() const
 }
 
 MappingSession::MappingSession(const MappingSessionConfig& config, std::shared_ptr<Executor> executor)
-  : stamps_(config.stamps)
+  : admission_(config.stamps)
   , trajectory_max_poses_(config.trajectory_max_poses)
   , mapping_(config.mapping, std::move(executor))
 {
@@ -26,28 +26,14 @@ Admission MappingSession::admit(const OdometryFrame& frame, std::int64_t stamp_n
 {
   std::lock_guard<std::mutex> lock(admission_mutex_);
   Admission out;
-  out.verdict = stamps_.check(stamp_ns);
-  out.step = stamps_.lastStep();
-  const StampAction action = actionFor(out.verdict);
-  out.taken = action.process;
+  static_cast<StampAdmission&>(out) = admission_.admit(frame, stamp_ns);
   if (!out.taken)
   {
     return out;
   }
   // A gap needs nothing here: the correction (map <- odometry world) is a frame offset, not a velocity, so
-  // applying it after a gap extrapolates nothing; odometry restarts its own motion prior.
-  if (action.reset)
-  {
-    out.reset = ResetReason::kJumpedBack;
-  }
-  else if (frame.status == OdometryStatus::kInitialized && odometry_running_)
-  {
-    // Odometry started a new trajectory at identity (its reset service, a reload, a restarted manager)
-    // while the stamps went on: its poses no longer fit this map, and building on would corrupt it.
-    ++odometry_restarts_;
-    out.reset = ResetReason::kOdometryRestarted;
-  }
-  odometry_running_ = true;
+  // applying it after a gap extrapolates nothing; odometry restarts its own motion prior. After a jump back
+  // or an odometry restart the frames' poses no longer fit this map, and building on would corrupt it.
   if (out.reset != ResetReason::kNone)
   {
     reset_pending_ = true;
@@ -163,9 +149,9 @@ LaserMappingConfig MappingSession::mappingConfig() const
 void MappingSession::setMaxGapSweeps(double sweeps)
 {
   std::lock_guard<std::mutex> lock(admission_mutex_);
-  StampCheckConfig config = stamps_.config();
+  StampCheckConfig config = admission_.config();
   config.max_gap_sweeps = sweeps;
-  stamps_.setConfig(config);
+  admission_.setConfig(config);
 }
 
 Cloud MappingSession::toMap(const Cloud& cloud, const Pose& pose)
@@ -204,8 +190,8 @@ MappingSessionStats MappingSession::stats() const
     out = stats_;
   }
   std::lock_guard<std::mutex> lock(admission_mutex_);
-  out.odometry_restarts = odometry_restarts_;
-  out.stamps = stamps_.counts();
+  out.odometry_restarts = admission_.odometryRestarts();
+  out.stamps = admission_.counts();
   return out;
 }
 

@@ -1,5 +1,7 @@
 #include "aloam_nodelet/core/stamp_check.h"
 
+#include "aloam_nodelet/core/laser_odometry.h"
+
 namespace aloam
 {
 namespace
@@ -77,6 +79,46 @@ StampVerdict StampCheck::check(std::int64_t stamp_ns)
   has_last_ = true;
   last_ns_ = stamp_ns;
   return verdict;
+}
+
+const char* toString(ResetReason reason)
+{
+  switch (reason)
+  {
+    case ResetReason::kNone:
+      return "none";
+    case ResetReason::kJumpedBack:
+      return "jumped back";
+    case ResetReason::kOdometryRestarted:
+      return "odometry restarted";
+    case ResetReason::kRequested:
+      return "requested";
+  }
+  return "unknown";
+}
+
+StampAdmission FrameAdmission::admit(const OdometryFrame& frame, std::int64_t stamp_ns)
+{
+  StampAdmission out;
+  out.verdict = stamps_.check(stamp_ns);
+  out.step = stamps_.lastStep();
+  const StampAction action = actionFor(out.verdict);
+  out.taken = action.process;
+  if (!out.taken)
+  {
+    return out;
+  }
+  if (action.reset)
+  {
+    out.reset = ResetReason::kJumpedBack;
+  }
+  else if (frame.status == OdometryStatus::kInitialized && odometry_running_)
+  {
+    ++odometry_restarts_;
+    out.reset = ResetReason::kOdometryRestarted;
+  }
+  odometry_running_ = true;
+  return out;
 }
 
 }  // namespace aloam

@@ -6,11 +6,13 @@
 // tf_mode; the map once, latched, on laser_cloud_map.
 #include <atomic>
 #include <condition_variable>
+#include <cstdint>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include <geometry_msgs/PoseWithCovarianceStamped.h>
 #include <nodelet/nodelet.h>
@@ -69,7 +71,11 @@ private:
   std::mutex queue_mutex_;
   std::condition_variable queue_cv_;
   aloam::LatestSlot<aloam::ros_io::StampedOdometryFrame::ConstPtr> waiting_;  // the newest, not yet localized
-  StampGuard stamps_;
+  // Mapping's time policy (duplicates, late frames, jumps back, odometry restarts); a reset it reports goes
+  // to the localizer with the next frame the worker takes, so it never lands before an older frame.
+  aloam::FrameAdmission admission_;
+  aloam::ResetReason pending_reset_ = aloam::ResetReason::kNone;
+  VerdictThrottle throttle_;
   std::atomic<bool> stop_{ false };
   std::thread worker_;
 
@@ -135,7 +141,7 @@ void LaserLocalizationNodelet::onInit()
   rep105_ = tf_mode == "rep105";
   pnh.param<std::string>("rep105_map_frame", rep105_map_frame_, "map");
   pnh.param<std::string>("base_frame", base_frame_, "base_link");
-  stamps_.setConfig(stampCheckParams(pnh, name));
+  admission_.setConfig(stampCheckParams(pnh, name));
 
   localizer_ = std::make_unique<aloam::Localizer>(localizerParams(pnh, name));
   aloam::MapData map;
@@ -197,7 +203,8 @@ void LaserLocalizationNodelet::onInit()
                   {
                     std::lock_guard<std::mutex> lock(queue_mutex_);
                     s.add("frames skipped (localization behind)", waiting_.skipped());
-                    stamps_.report(s);
+                    reportStamps(s, admission_.counts());
+                    s.add("odometry restarts (pose carried over)", admission_.odometryRestarts());
                   }
                   std::lock_guard<std::mutex> lock(core_mutex_);
                   const char* state = aloam::toString(last_.state);
@@ -340,22 +347,44 @@ void LaserLocalizationNodelet::useInitialPose(const aloam::Pose& pose)
 
 void LaserLocalizationNodelet::frameCb(const aloam::ros_io::StampedOdometryFrame::ConstPtr& msg)
 {
+  aloam::StampAdmission admission;
   {
     std::lock_guard<std::mutex> lock(queue_mutex_);
-    const aloam::StampVerdict verdict = stamps_.check(msg->header.stamp);
-    if (!aloam::isTaken(verdict))
+    admission = admission_.admit(msg->frame, static_cast<std::int64_t>(msg->header.stamp.toNSec()));
+    if (!admission.taken)
     {
-      if (stamps_.warningDue(verdict))
+      if (throttle_.due(admission.verdict))
       {
-        NODELET_WARN_STREAM(stamps_.dropMessage(verdict, "laser_odom_frame", msg->header.stamp));
+        NODELET_WARN_STREAM(
+            dropMessage(admission.verdict, "laser_odom_frame", msg->header.stamp, admission.step, admission_.counts()));
       }
       return;
     }
+  }
+  if (admission.reset == aloam::ResetReason::kJumpedBack)
+  {
+    NODELET_WARN(
+        "time jumped back %.3f s (looping bag?): localization starts over in the same map, from the "
+        "initial pose of the data's start if one was given",
+        -admission.step);
+  }
+  else if (admission.reset == aloam::ResetReason::kOdometryRestarted)
+  {
+    NODELET_WARN(
+        "odometry started a new trajectory (reset or reloaded): localizing again from the last pose "
+        "(%zu so far)",
+        admission_.odometryRestarts());
   }
   aloam::Pose corrected;
   bool answered = false;
   {
     std::lock_guard<std::mutex> lock(correction_mutex_);
+    if (admission.reset != aloam::ResetReason::kNone)
+    {
+      // The correction belongs to the old odometry trajectory: no full-rate answer until the localizer has
+      // answered in the new one.
+      answered_ = false;
+    }
     corrected = correction_ * msg->frame.pose;
     answered = answered_;
     sensor_frame_ = msg->sensor_frame_id;
@@ -369,12 +398,21 @@ void LaserLocalizationNodelet::frameCb(const aloam::ros_io::StampedOdometryFrame
   {
     return;
   }
-  if (waiting_.put(msg))
+  bool behind = false;
+  {
+    // Under the lock the worker takes the slot with: no lost wake-up, and the frame and a reset it brought
+    // are taken together.
+    std::lock_guard<std::mutex> lock(queue_mutex_);
+    behind = waiting_.put(msg);
+    // Two before the worker got to them: a jump back forgets the pose, which covers an odometry restart.
+    if (admission.reset != aloam::ResetReason::kNone && pending_reset_ != aloam::ResetReason::kJumpedBack)
+    {
+      pending_reset_ = admission.reset;
+    }
+  }
+  if (behind)
   {
     NODELET_WARN_THROTTLE(kThrottleSeconds, "localization is behind: %zu frames skipped so far", waiting_.skipped());
-  }
-  {
-    std::lock_guard<std::mutex> lock(queue_mutex_);  // the worker checks the slot under it: no lost wake-up
   }
   queue_cv_.notify_one();
 }
@@ -384,6 +422,7 @@ void LaserLocalizationNodelet::work()
   while (!stop_)
   {
     aloam::ros_io::StampedOdometryFrame::ConstPtr msg;
+    aloam::ResetReason reset = aloam::ResetReason::kNone;
     {
       std::unique_lock<std::mutex> lock(queue_mutex_);
       queue_cv_.wait(lock, [this] { return stop_ || !waiting_.empty(); });
@@ -392,12 +431,14 @@ void LaserLocalizationNodelet::work()
         return;
       }
       msg = *waiting_.take();
+      std::swap(reset, pending_reset_);
     }
     const auto start = std::chrono::steady_clock::now();
     aloam::LocalizationResult result;
     {
       std::lock_guard<std::mutex> lock(core_mutex_);
       const aloam::LocalizationState before = localizer_->state();
+      localizer_->restart(reset);
       result = localizer_->process(msg->frame);
       last_ = result;
       searches_ += result.searched;

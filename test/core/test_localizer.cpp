@@ -1,10 +1,12 @@
 // Tests of localization in a saved map: the map file format and its readers, and the Localizer on a
 // synthetic street (map one drive, localize another: other lane, other direction, other sensor).
 #include <algorithm>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -15,6 +17,7 @@
 
 #include "aloam_nodelet/core/localizer.h"
 #include "aloam_nodelet/core/map_file.h"
+#include "aloam_nodelet/core/mapping_session.h"
 #include "aloam_nodelet/core/pipeline.h"
 #include "test_support.h"
 
@@ -453,6 +456,248 @@ TEST(LocalizerTest, LostInUnmappedSpaceRecoversOnItsOwn)
       "the sweeps fit again\n",
       results[kBackAt - 1].fitness.inlier_share, results[kBackAt - 1].fitness.mean_residual,
       toString(results[kBackAt - 1].state), back);
+}
+
+namespace
+{
+std::int64_t nanoseconds(double seconds)
+{
+  return static_cast<std::int64_t>(seconds * 1e9 + 0.5);
+}
+
+// Odometry of the other drive's sweeps [from, to) from a fresh start (a new trajectory at identity).
+std::vector<OdometryFrame> otherDriveOdometry(int from, int to)
+{
+  const SensorModel sensor = ts::preset("VLP16");
+  Pipeline pipeline(pipelineConfig(sensor));
+  std::vector<OdometryFrame> frames;
+  for (int k = from; k < to; ++k)
+  {
+    const double t = (k + 1) * kPeriod;
+    const PipelineOutput out = pipeline.processOdometry(ts::staticSweep(sensor, otherDrive(t)), t, true, true);
+    EXPECT_EQ(out.status, PipelineStatus::kOk);
+    frames.push_back(out.odometry);
+  }
+  return frames;
+}
+
+// Admits `frame` stamped `stamp` (s) by the time policy and, if taken, hands the localizer the reset it
+// brought and localizes it: what the localization nodelet does with every frame.
+std::optional<LocalizationResult> admitAndProcess(FrameAdmission& admission, Localizer& localizer,
+                                                  const OdometryFrame& frame, double stamp,
+                                                  ResetReason* reset = nullptr)
+{
+  const StampAdmission a = admission.admit(frame, nanoseconds(stamp));
+  if (reset)
+  {
+    *reset = a.reset;
+  }
+  if (!a.taken)
+  {
+    return std::nullopt;
+  }
+  localizer.restart(a.reset);
+  return localizer.process(frame);
+}
+}  // namespace
+
+// Localization admits frames by mapping's time policy (FrameAdmission, the one MappingSession uses):
+// duplicates and late frames dropped, jumps back and odometry restarts reported, the same verdicts as
+// MappingSession's for the same frames and stamps.
+TEST(LocalizerTest, AdmitsFramesByMappingsTimePolicy)
+{
+  struct Step
+  {
+    double stamp;
+    bool new_trajectory;  // the frame is odometry's first of a trajectory (status kInitialized)
+    StampVerdict verdict;
+    ResetReason reset;
+  };
+  using V = StampVerdict;
+  using R = ResetReason;
+  const std::vector<Step> steps = {
+    { 10.0, true, V::kFirst, R::kNone },       { 10.1, false, V::kInSequence, R::kNone },
+    { 10.1, false, V::kDuplicate, R::kNone },  { 10.05, false, V::kOutOfOrder, R::kNone },
+    { 10.1, true, V::kDuplicate, R::kNone },   { 10.3, false, V::kInSequence, R::kNone },
+    { 12.0, false, V::kGap, R::kNone },        { 12.1, true, V::kInSequence, R::kOdometryRestarted },
+    { 12.2, false, V::kInSequence, R::kNone }, { 5.0, true, V::kJumpedBack, R::kJumpedBack },
+    { 5.1, false, V::kInSequence, R::kNone },  { 4.5, false, V::kOutOfOrder, R::kNone },
+  };
+  OdometryFrame first;  // default status: kInitialized
+  OdometryFrame going;
+  going.status = OdometryStatus::kOk;
+  FrameAdmission admission;
+  MappingSession session;
+  for (std::size_t k = 0; k < steps.size(); ++k)
+  {
+    const Step& step = steps[k];
+    const OdometryFrame& frame = step.new_trajectory ? first : going;
+    const StampAdmission a = admission.admit(frame, nanoseconds(step.stamp));
+    const Admission m = session.admit(frame, nanoseconds(step.stamp));
+    EXPECT_EQ(a.verdict, step.verdict) << "step " << k << ": " << toString(a.verdict);
+    EXPECT_EQ(a.reset, step.reset) << "step " << k << ": " << toString(a.reset);
+    EXPECT_EQ(a.taken, isTaken(step.verdict)) << "step " << k;
+    EXPECT_EQ(m.verdict, a.verdict) << "step " << k;
+    EXPECT_EQ(m.reset, a.reset) << "step " << k;
+    EXPECT_EQ(m.taken, a.taken) << "step " << k;
+    EXPECT_DOUBLE_EQ(m.step, a.step) << "step " << k;
+  }
+  const StampCounts& c = admission.counts();
+  EXPECT_EQ(c.duplicates, 2u);
+  EXPECT_EQ(c.out_of_order, 2u);
+  EXPECT_EQ(c.gaps, 1u);
+  EXPECT_EQ(c.jumps_back, 1u);
+  EXPECT_EQ(admission.odometryRestarts(), 1u);
+  const MappingSessionStats stats = session.stats();
+  EXPECT_EQ(stats.stamps.duplicates, c.duplicates);
+  EXPECT_EQ(stats.stamps.out_of_order, c.out_of_order);
+  EXPECT_EQ(stats.stamps.jumps_back, c.jumps_back);
+  EXPECT_EQ(stats.odometry_restarts, admission.odometryRestarts());
+}
+
+// Odometry restarts (its reset service) while localized: its new trajectory starts at identity, so the old
+// correction would put the sensor back where the old trajectory began. Told of the restart, the localizer
+// re-derives the correction from its last pose, searches around it and is localized again; one not told
+// answers far off.
+TEST(LocalizerTest, OdometryRestartCarriesTheLastPoseOver)
+{
+  constexpr int kRestartAt = 6, kSweeps = 14;
+  std::vector<OdometryFrame> frames = otherDriveOdometry(0, kRestartAt);
+  const std::vector<OdometryFrame> restarted = otherDriveOdometry(kRestartAt, kSweeps);
+  ASSERT_EQ(restarted.front().status, OdometryStatus::kInitialized);
+  frames.insert(frames.end(), restarted.begin(), restarted.end());
+  Localizer localizer, unaware;
+  localizer.loadMap(mappedStreet().map);
+  unaware.loadMap(mappedStreet().map);
+  localizer.setInitialPose(truthAt(0));
+  unaware.setInitialPose(truthAt(0));
+  FrameAdmission admission;
+  std::vector<LocalizationResult> results, blind;
+  for (int k = 0; k < kSweeps; ++k)
+  {
+    const OdometryFrame& frame = frames[static_cast<std::size_t>(k)];
+    ResetReason reset = ResetReason::kNone;
+    const std::optional<LocalizationResult> r = admitAndProcess(admission, localizer, frame, frame.stamp, &reset);
+    ASSERT_TRUE(r) << "sweep " << k;
+    EXPECT_EQ(reset, k == kRestartAt ? ResetReason::kOdometryRestarted : ResetReason::kNone) << "sweep " << k;
+    results.push_back(*r);
+    blind.push_back(unaware.process(frame));
+  }
+  EXPECT_EQ(admission.odometryRestarts(), 1u);
+  EXPECT_EQ(results[kRestartAt - 1].state, LocalizationState::kLocalized);
+  const LocalizationResult& at = results[kRestartAt];
+  EXPECT_TRUE(at.answered);
+  EXPECT_TRUE(at.searched);
+  EXPECT_EQ(at.state, LocalizationState::kLocalizing);
+  EXPECT_LE(ts::translationError(at.pose, truthAt(kRestartAt)), maxConvergedError());
+  for (int k = kRestartAt + kConvergedBy; k < kSweeps; ++k)
+  {
+    EXPECT_EQ(results[static_cast<std::size_t>(k)].state, LocalizationState::kLocalized) << "sweep " << k;
+    EXPECT_LE(ts::translationError(results[static_cast<std::size_t>(k)].pose, truthAt(k)), maxConvergedError())
+        << "sweep " << k;
+  }
+  const double blind_error = ts::translationError(blind[kRestartAt].pose, truthAt(kRestartAt));
+  std::printf(
+      "[ measured ] odometry restart at sweep %d: error %.3f m at the restart (search %.0f ms), %.3f m at the "
+      "end, %s; not told of it: %.3f m at the restart, %.3f m at the end, %s\n",
+      kRestartAt, ts::translationError(at.pose, truthAt(kRestartAt)), at.search_ms,
+      ts::translationError(results.back().pose, truthAt(kSweeps - 1)), toString(results.back().state), blind_error,
+      ts::translationError(blind.back().pose, truthAt(kSweeps - 1)), toString(blind.back().state));
+  // The old correction applied to the new trajectory's identity: the pose of the old trajectory's start.
+  EXPECT_GT(blind_error, 2.0);
+}
+
+// Lost when odometry restarts: still lost, and the odometry-propagated pose goes on from the last answer
+// instead of jumping to where the old trajectory began.
+TEST(LocalizerTest, OdometryRestartWhileLostStaysLost)
+{
+  constexpr int kRestartAt = 6, kSweeps = 8;
+  std::vector<OdometryFrame> frames = otherDriveOdometry(0, kRestartAt);
+  const std::vector<OdometryFrame> restarted = otherDriveOdometry(kRestartAt, kSweeps);
+  frames.insert(frames.end(), restarted.begin(), restarted.end());
+  Localizer localizer;
+  localizer.loadMap(mappedStreet().map);
+  localizer.setInitialPose(offset(truthAt(0), Eigen::Vector3d(0.0, 20.0, 0.0), 0.0));
+  FrameAdmission admission;
+  std::vector<LocalizationResult> results;
+  for (const OdometryFrame& frame : frames)
+  {
+    const std::optional<LocalizationResult> r = admitAndProcess(admission, localizer, frame, frame.stamp);
+    ASSERT_TRUE(r);
+    results.push_back(*r);
+  }
+  ASSERT_EQ(results[kRestartAt - 1].state, LocalizationState::kLost);
+  const LocalizationResult& at = results[kRestartAt];
+  EXPECT_EQ(at.state, LocalizationState::kLost);
+  EXPECT_TRUE(at.answered);
+  // The new trajectory's first pose is the identity: the answer is the last one, carried over.
+  EXPECT_LT(ts::translationError(at.pose, results[kRestartAt - 1].pose), 1e-6);
+  EXPECT_EQ(results.back().state, LocalizationState::kLost);
+}
+
+// A looping bag: the stamps jump back to the data's start and odometry starts over with them. The tracking
+// state does not carry over: a localizer whose initial pose applied to the first frame (as ~initial_pose)
+// starts again from it; one given its pose later (as /initialpose) forgets it and, with the global search,
+// finds the pose again by itself.
+TEST(LocalizerTest, JumpBackStartsOver)
+{
+  constexpr int kFirstRun = 12, kSecondRun = 8, kLateAt = 2;
+  const std::vector<OdometryFrame> run = otherDriveOdometry(0, kFirstRun);
+  LocalizerConfig global;
+  global.global_localization = true;
+  Localizer from_start, late(global);
+  from_start.loadMap(mappedStreet().map);
+  late.loadMap(mappedStreet().map);
+  from_start.setInitialPose(truthAt(0));
+  FrameAdmission admission_start, admission_late;
+  for (int k = 0; k < kFirstRun; ++k)
+  {
+    if (k == kLateAt)
+    {
+      late.setInitialPose(truthAt(k));
+    }
+    const OdometryFrame& frame = run[static_cast<std::size_t>(k)];
+    ASSERT_TRUE(admitAndProcess(admission_start, from_start, frame, frame.stamp));
+    ASSERT_TRUE(admitAndProcess(admission_late, late, frame, frame.stamp));
+  }
+  ASSERT_EQ(from_start.state(), LocalizationState::kLocalized);
+  ASSERT_EQ(late.state(), LocalizationState::kLocalized);
+
+  // The same data again, with the same stamps (1.1 s back: beyond jump_back_tolerance).
+  std::vector<LocalizationResult> again_start, again_late;
+  for (int k = 0; k < kSecondRun; ++k)
+  {
+    const OdometryFrame& frame = run[static_cast<std::size_t>(k)];
+    ResetReason reset_start = ResetReason::kNone, reset_late = ResetReason::kNone;
+    const auto a = admitAndProcess(admission_start, from_start, frame, frame.stamp, &reset_start);
+    const auto b = admitAndProcess(admission_late, late, frame, frame.stamp, &reset_late);
+    ASSERT_TRUE(a && b) << "sweep " << k;
+    const ResetReason expected = k == 0 ? ResetReason::kJumpedBack : ResetReason::kNone;
+    EXPECT_EQ(reset_start, expected) << "sweep " << k;
+    EXPECT_EQ(reset_late, expected) << "sweep " << k;
+    again_start.push_back(*a);
+    again_late.push_back(*b);
+  }
+  EXPECT_EQ(admission_start.counts().jumps_back, 1u);
+  EXPECT_EQ(admission_start.odometryRestarts(), 0u);  // the jump back covers odometry's own restart
+  // From the start pose, searched around it as when given.
+  EXPECT_TRUE(again_start[0].answered);
+  EXPECT_TRUE(again_start[0].searched);
+  EXPECT_EQ(again_start[0].state, LocalizationState::kLocalizing);
+  EXPECT_EQ(again_start.back().state, LocalizationState::kLocalized);
+  EXPECT_LE(ts::translationError(again_start.back().pose, truthAt(kSecondRun - 1)), maxConvergedError());
+  // Forgotten: the global search runs on the first frame of the new run.
+  EXPECT_TRUE(again_late[0].searched);
+  EXPECT_GT(again_late[0].candidates, 0);
+  EXPECT_NE(again_late[0].state, LocalizationState::kLocalized);
+  EXPECT_EQ(again_late.back().state, LocalizationState::kLocalized);
+  EXPECT_LE(ts::translationError(again_late.back().pose, truthAt(kSecondRun - 1)), maxConvergedError());
+  std::printf(
+      "[ measured ] jump back: from the start pose %.3f m at the end (%s); global search %d candidates, "
+      "%.0f ms, %.3f m at the end (%s)\n",
+      ts::translationError(again_start.back().pose, truthAt(kSecondRun - 1)), toString(again_start.back().state),
+      again_late[0].candidates, again_late[0].search_ms,
+      ts::translationError(again_late.back().pose, truthAt(kSecondRun - 1)), toString(again_late.back().state));
 }
 
 // No initial pose: the global search over the map's trajectory finds the pose by itself.

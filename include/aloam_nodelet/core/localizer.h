@@ -10,6 +10,7 @@
 
 #include "aloam_nodelet/core/laser_mapping.h"
 #include "aloam_nodelet/core/map_file.h"
+#include "aloam_nodelet/core/stamp_check.h"
 
 namespace aloam
 {
@@ -108,6 +109,20 @@ public:
   const std::vector<Eigen::Vector3d>& globalCandidates() const { return global_positions_; }
   /// Forgets the pose (the map stays): uninitialized.
   void reset();
+  /// The odometry frames stopped continuing the previous ones (FrameAdmission's reset reason); applied at
+  /// the next process(). The prior map stays either way; what must not cross the discontinuity is the
+  /// correction (map <- odometry world), which belongs to the old odometry trajectory.
+  /// - kOdometryRestarted: odometry's world began anew where the sensor was, while the sensor went on, so
+  ///   the last pose still holds but the correction does not: it is re-derived from the last pose, and the
+  ///   localizer searches around it and converges as from an initial pose (localizing); lost stays lost,
+  ///   propagated from that pose. Before any pose there is nothing to carry over.
+  /// - kJumpedBack: the data started over (a looping bag): the last pose says nothing about where the
+  ///   sensor is now, so it is forgotten and the localizer starts again as it started the first time: from
+  ///   the initial pose that applied to the first frame (the pose at the data's start, as ~initial_pose
+  ///   gives it) when there was one, else uninitialized (the global search when enabled, else waiting for
+  ///   an initial pose). An initial pose given since still applies instead.
+  /// - kRequested: reset().
+  void restart(ResetReason reason);
 
 private:
   LocalizerConfig config_;
@@ -117,6 +132,11 @@ private:
   bool initial_pending_ = false;
   Pose initial_pose_;
   bool search_pending_ = false;
+  bool rebase_pending_ = false;     ///< restart(kOdometryRestarted): re-derive the correction at the next frame
+  bool has_pose_ = false;           ///< last_pose_ holds the last answer
+  Pose last_pose_;                  ///< map <- sensor of the last answer
+  std::optional<Pose> start_pose_;  ///< the initial pose that applied to the first frame of the data
+  std::size_t run_frames_ = 0;      ///< frames processed since the map was loaded or the data started over
   int good_frames_ = 0, bad_frames_ = 0, lost_frames_ = 0;
   double last_residual_ = 0.0, last_step_ = 0.0;
   int outer_iterations_ = 0;  ///< what mapping_'s configuration holds now

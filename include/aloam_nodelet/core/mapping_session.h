@@ -22,23 +22,11 @@ struct MappingSessionConfig
   std::size_t trajectory_max_poses = 1'000'000;
 };
 
-/// Why a session starts a new map before the next registration.
-enum class ResetReason
+/// What the session made of an arriving frame (admit()): the time policy's verdict (FrameAdmission; a
+/// reset it reports is applied at the frame's registration) and the full-rate answer.
+struct Admission : StampAdmission
 {
-  kNone,
-  kJumpedBack,         ///< the stamps started over (a looping bag)
-  kOdometryRestarted,  ///< odometry began a new trajectory at identity while the stamps went on
-  kRequested,          ///< requestReset()
-};
-
-/// What the session made of an arriving frame (admit()).
-struct Admission
-{
-  StampVerdict verdict = StampVerdict::kFirst;
-  double step = 0.0;                       ///< seconds since the last stamp taken
-  bool taken = false;                      ///< false: dropped (duplicate or late stamp)
-  ResetReason reset = ResetReason::kNone;  ///< a reset this frame caused (applied at its registration)
-  Pose corrected;                          ///< map <- sensor for the full-rate answer (latest correction)
+  Pose corrected;  ///< map <- sensor for the full-rate answer (latest correction)
 };
 
 /// Counters and the last frame's figures, for diagnostics.
@@ -119,11 +107,9 @@ private:
 
   // Admission state (admission_mutex_): the full-rate answer must not wait for a registration.
   mutable std::mutex admission_mutex_;
-  StampCheck stamps_;
-  Pose correction_;                // map <- odometry world, as of the last registration
-  bool odometry_running_ = false;  // a frame of the current odometry trajectory was admitted
+  FrameAdmission admission_;
+  Pose correction_;  // map <- odometry world, as of the last registration
   bool reset_pending_ = false;
-  std::size_t odometry_restarts_ = 0;
 
   // Everything else (core_mutex_).
   mutable std::mutex core_mutex_;

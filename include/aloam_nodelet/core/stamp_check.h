@@ -92,4 +92,52 @@ private:
   StampCounts counts_;
 };
 
+/// Why a stage starts over (forgets its map or its pose) before the next frame.
+enum class ResetReason
+{
+  kNone,
+  kJumpedBack,         ///< the stamps started over (a looping bag)
+  kOdometryRestarted,  ///< odometry began a new trajectory at identity while the stamps went on
+  kRequested,          ///< asked for (a reset service)
+};
+
+/// Short name of a reason for log messages ("jumped back", ...).
+const char* toString(ResetReason reason);
+
+struct OdometryFrame;
+
+/// What the time policy made of an odometry frame (FrameAdmission::admit).
+struct StampAdmission
+{
+  StampVerdict verdict = StampVerdict::kFirst;
+  double step = 0.0;                       ///< seconds since the last stamp taken
+  bool taken = false;                      ///< false: dropped (duplicate or late stamp)
+  ResetReason reset = ResetReason::kNone;  ///< the frames stopped continuing the previous ones
+};
+
+/// The time policy of the stages that consume odometry frames (mapping, localization): the stamp check
+/// plus the detection of an odometry restart, so that both stages see the same discontinuities. What a
+/// stage does about them is its own (mapping starts a new map, localization keeps its prior map).
+/// Not thread-safe.
+class FrameAdmission
+{
+public:
+  explicit FrameAdmission(StampCheckConfig config = {}) : stamps_(config) {}
+
+  /// Classifies the frame stamped `stamp_ns`. A frame that is taken while an odometry trajectory is running
+  /// and is the first of a new one (status kInitialized: odometry's reset service, a reload, a restarted
+  /// manager) is an odometry restart; a jump back takes precedence (odometry restarts on it too).
+  StampAdmission admit(const OdometryFrame& frame, std::int64_t stamp_ns);
+
+  const StampCheckConfig& config() const { return stamps_.config(); }
+  void setConfig(const StampCheckConfig& config) { stamps_.setConfig(config); }
+  const StampCounts& counts() const { return stamps_.counts(); }
+  std::size_t odometryRestarts() const { return odometry_restarts_; }
+
+private:
+  StampCheck stamps_;
+  bool odometry_running_ = false;  // a frame of the current odometry trajectory was taken
+  std::size_t odometry_restarts_ = 0;
+};
+
 }  // namespace aloam
