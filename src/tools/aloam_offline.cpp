@@ -624,6 +624,8 @@ int localize(const Options& opt, const aloam::PipelineConfig& config, FrameSourc
             "search_ms localize_ms x y z roll pitch yaw\n";
   }
   aloam::Pipeline pipeline(config);
+  // The localization nodelet's time policy: a jump back or an odometry restart reaches the localizer.
+  aloam::FrameAdmission admission(config.stamps);
   aloam::eval::Trajectory trajectory;
   std::vector<double> stamps, localize_ms;
   std::size_t answered = 0, localized = 0, lost = 0, rejected = 0;
@@ -632,24 +634,39 @@ int localize(const Options& opt, const aloam::PipelineConfig& config, FrameSourc
   Frame frame;
   aloam::Pose pose;
   const bool tty = isatty(fileno(stderr));
+  const auto skip = [&]
+  {
+    ++rejected;
+    trajectory.push_back(pose.isometry());  // the last answer stands for the frame
+    stamps.push_back(frame.stamp);
+  };
   const auto start = std::chrono::steady_clock::now();
   for (std::size_t i = opt.start_frame; i < end; ++i)
   {
     if (!source.read(i, frame))
     {
-      ++rejected;
-      trajectory.push_back(pose.isometry());
-      stamps.push_back(frame.stamp);
+      skip();
       continue;
     }
     const aloam::PipelineOutput out =
         pipeline.processOdometry(frame.cloud, frame.stamp, frame.has_ring, frame.has_time);
     if (out.status != aloam::PipelineStatus::kOk)
     {
-      ++rejected;
-      trajectory.push_back(pose.isometry());
-      stamps.push_back(frame.stamp);
+      skip();
       continue;
+    }
+    const aloam::StampAdmission admitted =
+        admission.admit(out.odometry, static_cast<std::int64_t>(std::llround(frame.stamp * 1e9)));
+    if (!admitted.taken)
+    {
+      skip();
+      continue;
+    }
+    if (admitted.reset != aloam::ResetReason::kNone)
+    {
+      std::cerr << "aloam_offline: frame " << i << ": " << aloam::toString(admitted.reset)
+                << ": the localizer restarts\n";
+      localizer.restart(admitted.reset);
     }
     const auto t0 = std::chrono::steady_clock::now();
     const aloam::LocalizationResult r = localizer.process(out.odometry);
