@@ -15,13 +15,8 @@
 # estimated steps against the true step among the true steps longer than 5 cm (hard_case_metrics.py).
 set -uo pipefail
 source "$(dirname "$0")/check_lib.sh"
-if [ $# -lt 2 ]; then
-  sed -n '2,16p' "$0" >&2
-  exit 2
-fi
+need_args 2 $#
 bin="$1" out="$2"
-here="$(cd "$(dirname "$0")" && pwd)"
-metrics="$here/hard_case_metrics.py"
 seeds="${SEEDS:-1 2 3}"
 for tool in aloam_sim aloam_offline aloam_eval; do
   [ -x "$bin/$tool" ] || { echo "SKIP: $bin/$tool not built"; exit 77; }

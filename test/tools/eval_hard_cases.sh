@@ -17,15 +17,10 @@
 # longer than 5 cm. frames / period_s are the published sweeps and the spacing of their stamps.
 set -uo pipefail
 source "$(dirname "$0")/check_lib.sh"
-if [ $# -lt 2 ]; then
-  sed -n '2,20p' "$0" >&2
-  exit 2
-fi
+need_args 2 $#
 bin="$1" out="$2"
 shift 2
 offline_args=("$@")
-here="$(cd "$(dirname "$0")" && pwd)"
-metrics="$here/hard_case_metrics.py"
 seeds="${SEEDS:-1 2 3}"
 mkdir -p "$out"
 

@@ -15,14 +15,10 @@
 # 10, 20 and 50 m segments.
 set -uo pipefail
 source "$(dirname "$0")/check_lib.sh"
-if [ $# -lt 2 ]; then
-  sed -n '2,16p' "$0" >&2
-  exit 2
-fi
+need_args 2 $#
 bin="$1" out="$2"
 shift 2
 offline_args=("$@")
-metrics="$(cd "$(dirname "$0")" && pwd)/hard_case_metrics.py"
 seeds="${SEEDS:-1 2}"
 sensors="${SENSORS:-VLP16 HDL32 HDL64 VLP32C OS1_64 OS0_64 OS1_128}"
 duration="${DURATION:-8}"
