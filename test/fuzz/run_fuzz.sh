@@ -12,8 +12,10 @@ if ! command -v clang++ >/dev/null; then
   echo "SKIPPED fuzzing: clang++ not installed"
   exit 77
 fi
-flags=(-std=c++17 -g -O1 -fsanitize=fuzzer,address,undefined -fno-sanitize-recover=undefined
+# The fuzz targets take libFuzzer's main; the objects they link (stage messages) the same flags without it.
+object_flags=(-std=c++17 -g -O1 -fsanitize=address,undefined -fno-sanitize-recover=undefined
   -I "$root/include" -isystem /usr/include/eigen3 -isystem /usr/include/pcl-1.13)
+flags=("${object_flags[@]}" -fsanitize=fuzzer)
 stage_messages=false
 [ -f "$ws/devel/include/aloam_nodelet/FeatureClouds.h" ] && stage_messages=true
 # The reader is the smaller target: a third of the time, the stage messages the rest.
@@ -21,37 +23,50 @@ reader_seconds=$seconds
 $stage_messages && reader_seconds=$(((seconds + 2) / 3))
 stage_seconds=$((seconds - reader_seconds))
 
-mkdir -p "$out/corpus"
-clang++ "${flags[@]}" \
-  "$root/test/fuzz/fuzz_pointcloud2_reader.cpp" "$root/src/ros/pointcloud2_reader.cpp" \
-  -o "$out/fuzz_pointcloud2_reader"
-# -rss_limit_mb: the reader caps enormous clouds; a bigger footprint is a bug too.
-"$out/fuzz_pointcloud2_reader" "$out/corpus" -max_total_time="$reader_seconds" -rss_limit_mb=1024 \
-  -print_final_stats=1 -artifact_prefix="$out/" 2>&1 | tail -n 12
-echo "PASSED fuzzing the PointCloud2 reader for ${reader_seconds} s"
+# fuzz_target NAME WHAT SECONDS RSS_MB PREFIX INPUTS...: builds OUT_DIR/NAME from test/fuzz/NAME.cpp and
+# INPUTS (more sources, objects, libraries) and runs it for SECONDS on its corpus OUT_DIR/PREFIXcorpus;
+# a crashing input is saved as OUT_DIR/PREFIXcrash-*. Exits the script with 1 if it finds one.
+fuzz_target() {
+  local name="$1" what="$2" seconds="$3" rss_mb="$4" prefix="$5" status=0
+  shift 5
+  mkdir -p "$out/${prefix}corpus"
+  clang++ "${flags[@]}" "$root/test/fuzz/$name.cpp" "$@" -o "$out/$name"
+  # -rss_limit_mb: a bigger footprint than the target's cap is a bug too.
+  "$out/$name" "$out/${prefix}corpus" -max_total_time="$seconds" -rss_limit_mb="$rss_mb" -print_final_stats=1 \
+    -artifact_prefix="$out/$prefix" 2>&1 | tail -n 12 || status=$?
+  # libFuzzer exits 77 on a crash by default, which scripts/test.sh would count as skipped: say 1.
+  if [ "$status" -ne 0 ]; then
+    echo "FAILED fuzzing $what: exit $status (inputs: $out/${prefix}crash-*, oom-*, timeout-*, leak-*)"
+    exit 1
+  fi
+  echo "PASSED fuzzing $what for ${seconds} s"
+}
+
+# The reader caps enormous clouds (1 GB is far above what it may keep).
+fuzz_target fuzz_pointcloud2_reader "the PointCloud2 reader" "$reader_seconds" 1024 "" \
+  "$root/src/ros/pointcloud2_reader.cpp"
 
 if ! $stage_messages; then
   echo "SKIPPED fuzzing the stage messages: no generated messages in $ws/devel/include (build first)"
   exit 0
 fi
 # The core stages and the message conversions, instrumented too (two at a time: the machine is shared).
-mkdir -p "$out/stage_obj" "$out/stage_corpus"
+mkdir -p "$out/stage_obj"
 sources=("$root"/src/core/*.cpp "$root/src/ros/stage_messages.cpp" "$root/src/ros/conversions.cpp"
   "$root/src/ros/pointcloud2_reader.cpp")
 # Objects are kept in OUT_DIR and rebuilt when a source or any header is newer (the first build takes minutes).
-stale=()
+objects=() stale=()
 for src in "${sources[@]}"; do
   obj="$out/stage_obj/$(basename "$src" .cpp).o"
+  objects+=("$obj")
   if [ ! -f "$obj" ] || [ "$src" -nt "$obj" ] || [ -n "$(find "$root/include" -newer "$obj" -name '*.h' | head -n 1)" ]; then
     stale+=("$src")
   fi
 done
-[ ${#stale[@]} -eq 0 ] || printf '%s\n' "${stale[@]}" | xargs -P 2 -I{} sh -c \
-  'clang++ "$@" -fsanitize=address,undefined -fno-sanitize-recover=undefined -c "{}" -o "'"$out"'/stage_obj/$(basename {} .cpp).o"' \
-  _ -std=c++17 -g -O1 -I "$root/include" -isystem "$ws/devel/include" -isystem /usr/include/eigen3 \
-  -isystem /usr/include/pcl-1.13
-clang++ "${flags[@]}" -isystem "$ws/devel/include" "$root/test/fuzz/fuzz_stage_messages.cpp" "$out"/stage_obj/*.o \
-  -lceres -lglog -lpcl_io -lpcl_common -lroscpp_serialization -lrostime -lcpp_common -lpthread -o "$out/fuzz_stage_messages"
-"$out/fuzz_stage_messages" "$out/stage_corpus" -max_total_time="$stage_seconds" -rss_limit_mb=2048 \
-  -print_final_stats=1 -artifact_prefix="$out/stage_" 2>&1 | tail -n 12
-echo "PASSED fuzzing the stage messages for ${stage_seconds} s"
+# xargs hands each job one stale source after the flags ($0: the object folder).
+[ ${#stale[@]} -eq 0 ] || printf '%s\n' "${stale[@]}" | xargs -d '\n' -n 1 -P 2 bash -c \
+  'clang++ "${@:1:$#-1}" -c "${*: -1}" -o "$0/$(basename "${*: -1}" .cpp).o"' "$out/stage_obj" \
+  "${object_flags[@]}" -isystem "$ws/devel/include"
+# Only the objects of today's sources are linked (an old object of a removed source may still be there).
+fuzz_target fuzz_stage_messages "the stage messages" "$stage_seconds" 2048 stage_ -isystem "$ws/devel/include" \
+  "${objects[@]}" -lceres -lglog -lpcl_io -lpcl_common -lroscpp_serialization -lrostime -lcpp_common -lpthread

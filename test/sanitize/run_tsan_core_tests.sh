@@ -3,36 +3,12 @@
 # and runs it. Every stage runs its searches on 2 threads by default (the configs' `threads`), so the
 # stage, pipeline and parallel tests all exercise the helper threads. Usage: run_tsan_core_tests.sh OUT_DIR.
 # Exit 0: passed and ThreadSanitizer reported nothing; 1: a test failed or ThreadSanitizer reported.
-# Sources and tests are globbed, so new core files are checked without editing this script.
+# The build (and which tests are in it) is shared with run_sanitized_core_tests.sh: sanitize_common.sh.
 set -euo pipefail
 out="$1"
 root="$(cd "$(dirname "$0")/../.." && pwd)"
-mkdir -p "$out/obj"
-flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer -fsanitize=thread
-       -I "$root/include" -I /usr/include/eigen3 -I /usr/include/pcl-1.13)
-# Not here: test_kitti_accuracy (real data through the dataset reader, a single-threaded accuracy check that
-# takes minutes without a sanitizer) and test_param_defaults (reads the source tree's files; no threads).
-shopt -s nullglob
-tests=()
-for src in "$root"/test/core/test_*.cpp; do
-  name="$(basename "$src")"
-  [[ "$name" == test_kitti_accuracy.cpp || "$name" == test_param_defaults.cpp ]] || tests+=("$src")
-done
-sources=("$root"/src/core/*.cpp "$root"/src/sim/*.cpp "$root"/src/eval/*.cpp "${tests[@]}")
-start=$SECONDS
-# Compile on every core. An object is reused only if neither its source nor any header changed since.
-if [ -f "$out/obj/.stamp" ] && [ -n "$(find "$root/include" "$root/src" "$root/test/core" -name '*.h' -newer "$out/obj/.stamp")" ]; then
-  rm -f "$out"/obj/*.o
-fi
-printf '%s\n' "${sources[@]}" | xargs -P "$(nproc)" -I{} bash -c '
-  src="{}"; obj="'"$out"'/obj/$(echo "$src" | tr / _).o"
-  if [ ! -f "$obj" ] || [ "$src" -nt "$obj" ]; then g++ '"${flags[*]@Q}"' -c "$src" -o "$obj"; fi'
-touch "$out/obj/.stamp"
-# Link the objects of today's sources only (an old object of a removed source may still be there).
-objects=()
-for src in "${sources[@]}"; do objects+=("$out/obj/$(echo "$src" | tr / _).o"); done
-g++ "${flags[@]}" "${objects[@]}" -lceres -lglog -lpcl_common -lpcl_io -lgtest -lgtest_main -pthread -o "$out/test_core_tsan"
-echo "built the core tests with ThreadSanitizer in $((SECONDS - start)) s"
+source "$root/test/sanitize/sanitize_common.sh"
+sanitize_build_core_tests "$root" "$out" test_core_tsan -fsanitize=thread || exit 1
 
 # Every report is printed (halt_on_error=0) and makes the process exit 66 at the end; the log is also
 # searched, since a test binary that exits on its own path could hide the exit code.

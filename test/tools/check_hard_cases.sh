@@ -15,13 +15,8 @@
 # estimated steps against the true step among the true steps longer than 5 cm (hard_case_metrics.py).
 set -uo pipefail
 source "$(dirname "$0")/check_lib.sh"
-if [ $# -lt 2 ]; then
-  sed -n '2,16p' "$0" >&2
-  exit 2
-fi
+need_args 2 $#
 bin="$1" out="$2"
-here="$(cd "$(dirname "$0")" && pwd)"
-metrics="$here/hard_case_metrics.py"
 seeds="${SEEDS:-1 2 3}"
 for tool in aloam_sim aloam_offline aloam_eval; do
   [ -x "$bin/$tool" ] || { echo "SKIP: $bin/$tool not built"; exit 77; }
@@ -83,18 +78,11 @@ targets=(
   "assert better urban_handheld_5hz ate"       # (0.07-0.12 vs 0.20-0.28 m)
 )
 
-field() { awk -v k="$1" '{for (i = 1; i < NF; ++i) if ($i == k) {print $(i + 1); exit}}' "$2"; }
-
 # run_mode RUN_DIR MODE SENSOR SEGMENTS [ARGS]: maps RUN_DIR/sim.bag, writes RUN_DIR/MODE.fig
-# ("ate rot back steps"); returns 1 on a tool failure.
+# ("ate rot back steps"); on a tool failure prints it and returns 1.
 run_mode() {
-  local run="$1" mode="$2" sensor="$3" segments="$4"
-  shift 4
-  "$bin/aloam_offline" --bag "$run/sim.bag" --topic velodyne_points --sensor "$sensor" --deskew \
-    --trajectory "$run/$mode.txt" "$@" >"$run/$mode.offline.txt" 2>&1 || return 1
-  "$bin/aloam_eval" --gt "$run/gt.txt" --trajectory "$run/$mode.txt" --segments "$segments" \
-    >"$run/$mode.eval.txt" 2>&1 || return 1
-  python3 "$metrics" compare "$run/gt.txt" "$run/$mode.txt" >"$run/$mode.compare.txt" 2>&1 || return 1
+  local run="$1" mode="$2"
+  map_and_evaluate "$@" || return 1
   echo "$(figure ate_rmse_m "$run/$mode.eval.txt") $(figure rotation_deg_per_100m "$run/$mode.eval.txt")" \
     "$(field backward_steps "$run/$mode.compare.txt") $(field of "$run/$mode.compare.txt")" >"$run/$mode.fig"
 }
@@ -123,18 +111,16 @@ for row in "${case_table[@]}"; do
     run="$out/${name}_s$seed"
     rm -rf "$run"
     mkdir -p "$run"
-    if ! "$bin/aloam_sim" --sensor "$sensor" --scene "$scene" --trajectory "$trajectory" --duration "$duration" \
-      --seed "$seed" --keep-every "$keep" --bag "$run/sim.bag" >"$run/sim.txt" 2>&1 ||
-      ! python3 "$metrics" gt "$run/sim.bag" "$run/gt.txt" >"$run/gt_info.txt" 2>&1; then
-      echo "FAIL: $name seed $seed: aloam_sim (see $run/sim.txt)"
+    if ! why=$(simulate "$run" "$sensor" "$scene" "$trajectory" "$duration" "$seed" "$keep"); then
+      echo "FAIL: $name seed $seed: $why"
       status=1
       continue
     fi
     t0=$(date +%s)
-    run_mode "$run" new "$sensor" "$segments" ||
-      { echo "FAIL: $name seed $seed: new handling (see $run)"; status=1; continue; }
-    run_mode "$run" baseline "$sensor" "$segments" --baseline ||
-      { echo "FAIL: $name seed $seed: baseline (see $run)"; status=1; continue; }
+    why=$(run_mode "$run" new "$sensor" "$segments") ||
+      { echo "FAIL: $name seed $seed: new handling: $why"; status=1; continue; }
+    why=$(run_mode "$run" baseline "$sensor" "$segments" --baseline) ||
+      { echo "FAIL: $name seed $seed: baseline: $why"; status=1; continue; }
     t1=$(date +%s)
     rm -f "$run/sim.bag"
     read -r ate rot back steps <"$run/new.fig"

@@ -16,15 +16,11 @@
 # and how many estimated steps move against the true step (dot product < 0) among the true steps
 # longer than 5 cm. frames / period_s are the published sweeps and the spacing of their stamps.
 set -uo pipefail
-if [ $# -lt 2 ]; then
-  sed -n '2,20p' "$0" >&2
-  exit 2
-fi
+source "$(dirname "$0")/check_lib.sh"
+need_args 2 $#
 bin="$1" out="$2"
 shift 2
 offline_args=("$@")
-here="$(cd "$(dirname "$0")" && pwd)"
-metrics="$here/hard_case_metrics.py"
 seeds="${SEEDS:-1 2 3}"
 mkdir -p "$out"
 
@@ -42,9 +38,6 @@ case_table=(
   "office_os0         office handheld_turn   OS0_64 18 1 5,10,20"
 )
 
-figure() { awk -v k="$1:" '$1 == k {print $2}' "$2"; }
-field() { awk -v k="$1" '{for (i = 1; i < NF; ++i) if ($i == k) {print $(i + 1); exit}}' "$2"; }
-
 results="$out/results.txt"
 header=$(printf "%-20s %4s %6s %8s %8s %9s %12s %11s %9s" case seed frames period_s ate_m drift_% "rot_deg/100m" \
   max_head_deg backward)
@@ -60,33 +53,18 @@ for row in "${case_table[@]}"; do
   for seed in $seeds; do
     run="$out/${name}_s$seed"
     mkdir -p "$run"
-    bag="$run/sim.bag"
-    if ! "$bin/aloam_sim" --sensor "$sensor" --scene "$scene" --trajectory "$trajectory" --duration "$duration" \
-      --seed "$seed" --keep-every "$keep" --bag "$bag" >"$run/sim.txt" 2>&1; then
-      printf "%-20s %4s FAILED: aloam_sim (see %s)\n" "$name" "$seed" "$run/sim.txt" | tee -a "$results"
+    if ! why=$(simulate "$run" "$sensor" "$scene" "$trajectory" "$duration" "$seed" "$keep") ||
+      ! why=$(map_and_evaluate "$run" est "$sensor" "$segments" "${offline_args[@]}"); then
+      printf "%-20s %4s FAILED: %s\n" "$name" "$seed" "$why" | tee -a "$results"
       status=1
       continue
     fi
-    if ! "$bin/aloam_offline" --bag "$bag" --topic velodyne_points --sensor "$sensor" --deskew \
-      --trajectory "$run/est.txt" "${offline_args[@]}" >"$run/offline.txt" 2>&1; then
-      printf "%-20s %4s FAILED: aloam_offline (see %s)\n" "$name" "$seed" "$run/offline.txt" | tee -a "$results"
-      status=1
-      continue
-    fi
-    if ! python3 "$metrics" gt "$bag" "$run/gt.txt" >"$run/gt_info.txt" 2>&1 ||
-      ! "$bin/aloam_eval" --gt "$run/gt.txt" --trajectory "$run/est.txt" --segments "$segments" \
-        >"$run/eval.txt" 2>&1 ||
-      ! python3 "$metrics" compare "$run/gt.txt" "$run/est.txt" >"$run/compare.txt" 2>&1; then
-      printf "%-20s %4s FAILED: evaluation (see %s)\n" "$name" "$seed" "$run" | tee -a "$results"
-      status=1
-      continue
-    fi
-    [ "${KEEP_BAGS:-0}" = 1 ] || rm -f "$bag"
+    [ "${KEEP_BAGS:-0}" = 1 ] || rm -f "$run/sim.bag"
     printf "%-20s %4s %6s %8s %8s %9s %12s %11s %9s\n" "$name" "$seed" "$(field frames "$run/gt_info.txt")" \
-      "$(field period_s "$run/gt_info.txt")" "$(figure ate_rmse_m "$run/eval.txt")" \
-      "$(figure translation_drift_percent "$run/eval.txt")" "$(figure rotation_deg_per_100m "$run/eval.txt")" \
-      "$(field max_heading_deg "$run/compare.txt")" \
-      "$(field backward_steps "$run/compare.txt")/$(field of "$run/compare.txt")" | tee -a "$results"
+      "$(field period_s "$run/gt_info.txt")" "$(figure ate_rmse_m "$run/est.eval.txt")" \
+      "$(figure translation_drift_percent "$run/est.eval.txt")" "$(figure rotation_deg_per_100m "$run/est.eval.txt")" \
+      "$(field max_heading_deg "$run/est.compare.txt")" \
+      "$(field backward_steps "$run/est.compare.txt")/$(field of "$run/est.compare.txt")" | tee -a "$results"
   done
 done
 echo "# $(($(date +%s) - start_all)) s; per-run files under $out" | tee -a "$results"

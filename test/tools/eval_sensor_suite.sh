@@ -14,20 +14,15 @@
 # Columns: ATE (m, after rigid alignment), translation drift (%) and rotation drift (deg/100 m) over
 # 10, 20 and 50 m segments.
 set -uo pipefail
-if [ $# -lt 2 ]; then
-  sed -n '2,16p' "$0" >&2
-  exit 2
-fi
+source "$(dirname "$0")/check_lib.sh"
+need_args 2 $#
 bin="$1" out="$2"
 shift 2
 offline_args=("$@")
-metrics="$(cd "$(dirname "$0")" && pwd)/hard_case_metrics.py"
 seeds="${SEEDS:-1 2}"
 sensors="${SENSORS:-VLP16 HDL32 HDL64 VLP32C OS1_64 OS0_64 OS1_128}"
 duration="${DURATION:-8}"
 mkdir -p "$out"
-
-figure() { awk -v k="$1:" '$1 == k {print $2}' "$2"; }
 
 results="$out/results.txt"
 echo "# aloam_offline extra args: ${offline_args[*]:-(none)}" | tee "$results"
@@ -38,21 +33,15 @@ for sensor in $sensors; do
   for seed in $seeds; do
     run="$out/${sensor}_s$seed"
     mkdir -p "$run"
-    bag="$run/sim.bag"
-    if ! "$bin/aloam_sim" --sensor "$sensor" --scene urban --trajectory car --duration "$duration" --seed "$seed" \
-      --bag "$bag" >"$run/sim.txt" 2>&1 ||
-      ! "$bin/aloam_offline" --bag "$bag" --topic velodyne_points --sensor "$sensor" --deskew \
-        --trajectory "$run/est.txt" "${offline_args[@]}" >"$run/offline.txt" 2>&1 ||
-      ! python3 "$metrics" gt "$bag" "$run/gt.txt" >"$run/gt_info.txt" 2>&1 ||
-      ! "$bin/aloam_eval" --gt "$run/gt.txt" --trajectory "$run/est.txt" --segments 10,20,50 \
-        >"$run/eval.txt" 2>&1; then
-      printf "%-8s %4s FAILED (see %s)\n" "$sensor" "$seed" "$run" | tee -a "$results"
+    if ! why=$(simulate "$run" "$sensor" urban car "$duration" "$seed" 1) ||
+      ! why=$(map_and_evaluate "$run" est "$sensor" 10,20,50 "${offline_args[@]}"); then
+      printf "%-8s %4s FAILED: %s\n" "$sensor" "$seed" "$why" | tee -a "$results"
       status=1
       continue
     fi
-    rm -f "$bag"
-    printf "%-8s %4s %8s %9s %12s\n" "$sensor" "$seed" "$(figure ate_rmse_m "$run/eval.txt")" \
-      "$(figure translation_drift_percent "$run/eval.txt")" "$(figure rotation_deg_per_100m "$run/eval.txt")" |
+    rm -f "$run/sim.bag"
+    printf "%-8s %4s %8s %9s %12s\n" "$sensor" "$seed" "$(figure ate_rmse_m "$run/est.eval.txt")" \
+      "$(figure translation_drift_percent "$run/est.eval.txt")" "$(figure rotation_deg_per_100m "$run/est.eval.txt")" |
       tee -a "$results"
   done
 done

@@ -1,0 +1,49 @@
+# Sourced (not run) by run_sanitized_core_tests.sh (AddressSanitizer + UBSan) and run_tsan_core_tests.sh
+# (ThreadSanitizer): both build the ROS-free core and its gtest suite outside catkin (the core needs no ROS)
+# the same way and differ only in the sanitizer flags and in how they judge the run.
+
+# Not in the sanitized suite: test_kitti_accuracy (real data through the dataset reader, a single-threaded
+# accuracy check that takes minutes without a sanitizer) and test_param_defaults (reads the source tree's
+# files; no threads, no memory of its own worth checking). Every other test is globbed, so a new core test
+# or source is checked without editing the scripts.
+sanitize_core_sources() {  # sanitize_core_sources ROOT: the sources, one a line
+  local root="$1" src name
+  shopt -s nullglob
+  printf '%s\n' "$root"/src/core/*.cpp "$root"/src/sim/*.cpp "$root"/src/eval/*.cpp
+  for src in "$root"/test/core/test_*.cpp; do
+    name="$(basename "$src")"
+    [[ "$name" == test_kitti_accuracy.cpp || "$name" == test_param_defaults.cpp ]] || echo "$src"
+  done
+}
+
+# sanitize_build_core_tests ROOT OUT_DIR EXE SANITIZER_FLAGS...: compiles the core and its tests with the
+# given sanitizer flags into OUT_DIR/obj and links OUT_DIR/EXE. Returns non-zero if anything fails to build.
+# Every step is checked here: callers may run it under `|| exit 1`, where `set -e` does not apply.
+sanitize_build_core_tests() {
+  local root="$1" out="$2" exe="$3"
+  shift 3
+  local flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer "$@"
+               -I "$root/include" -I /usr/include/eigen3 -I /usr/include/pcl-1.13)
+  local sources=() objects=() src start=$SECONDS
+  mapfile -t sources < <(sanitize_core_sources "$root")
+  # Objects are named after their source's path, so the two sanitizers' builds never share one.
+  for src in "${sources[@]}"; do objects+=("$out/obj/$(echo "$src" | tr / _).o"); done
+  mkdir -p "$out/obj" || return 1
+  # An object is reused only if neither its source nor any header changed since the last build.
+  if [ -f "$out/obj/.stamp" ] &&
+     [ -n "$(find "$root/include" "$root/src" "$root/test/core" -name '*.h' -newer "$out/obj/.stamp")" ]; then
+    rm -f "$out"/obj/*.o
+  fi
+  # Compile on every core: xargs hands each job a source and its object after the flags.
+  local i
+  for i in "${!sources[@]}"; do printf '%s\n%s\n' "${sources[i]}" "${objects[i]}"; done |
+    xargs -r -d '\n' -n 2 -P "$(nproc)" bash -c '
+      src="${*: -2:1}" obj="${*: -1}"
+      if [ ! -f "$obj" ] || [ "$src" -nt "$obj" ]; then g++ "${@:1:$#-2}" -c "$src" -o "$obj"; fi' _ "${flags[@]}" ||
+    { echo "FAILED compiling the core tests with $*"; return 1; }
+  touch "$out/obj/.stamp" || return 1
+  # Only the objects of today's sources are linked (an old object of a removed source may still be there).
+  g++ "${flags[@]}" "${objects[@]}" -lceres -lglog -lpcl_common -lpcl_io -lgtest -lgtest_main -pthread \
+    -o "$out/$exe" || { echo "FAILED linking the core tests with $*"; return 1; }
+  echo "built the core tests with $* in $((SECONDS - start)) s"
+}
