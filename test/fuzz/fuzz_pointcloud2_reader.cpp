@@ -9,6 +9,7 @@
 #include <cstring>
 #include <string>
 
+#include "byte_source.h"
 #include "aloam_nodelet/ros/pointcloud2_reader.h"
 
 namespace
@@ -19,30 +20,8 @@ constexpr std::size_t kFieldNameCount = sizeof(kFieldNames) / sizeof(kFieldNames
 constexpr std::size_t kMaxFields = 8;
 constexpr std::uint32_t kMaxDimension = 4096;  // keeps width * height * point_step small enough to run fast
 
-// Reads the layout description off the front of the input.
-class ByteSource
-{
-public:
-  ByteSource(const std::uint8_t* data, std::size_t size) : data_(data), size_(size) {}
-
-  std::uint8_t byte() { return pos_ < size_ ? data_[pos_++] : 0; }
-  std::uint32_t u16() { return static_cast<std::uint32_t>(byte()) | (static_cast<std::uint32_t>(byte()) << 8); }
-  const std::uint8_t* rest() const { return data_ + pos_; }
-  std::size_t restSize() const { return pos_ < size_ ? size_ - pos_ : 0; }
-
-private:
-  const std::uint8_t* data_;
-  std::size_t size_;
-  std::size_t pos_ = 0;
-};
-
-void require(bool condition)
-{
-  if (!condition)
-  {
-    std::abort();
-  }
-}
+using aloam_fuzz::ByteSource;
+using aloam_fuzz::require;
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size)
@@ -65,7 +44,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     field.count = in.byte() % 3;
     msg.fields.push_back(field);
   }
-  msg.data.assign(in.rest(), in.rest() + in.restSize());
+  msg.data.assign(in.rest(), in.rest() + in.left());
 
   aloam::ros_io::ReaderOptions options;
   options.max_points = 1 + (size % 5000);

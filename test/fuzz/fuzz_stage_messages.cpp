@@ -20,47 +20,15 @@
 
 #include <ros/serialization.h>
 
+#include "byte_source.h"
 #include "aloam_nodelet/core/laser_mapping.h"
 #include "aloam_nodelet/core/laser_odometry.h"
 #include "aloam_nodelet/ros/stage_messages.h"
 
 namespace
 {
-class ByteSource
-{
-public:
-  ByteSource(const std::uint8_t* data, std::size_t size) : data_(data), size_(size) {}
-
-  std::uint8_t byte() { return pos_ < size_ ? data_[pos_++] : 0; }
-  std::int16_t i16() { return static_cast<std::int16_t>(byte() | (byte() << 8)); }
-  float f32()
-  {
-    std::uint32_t bits = 0;
-    for (int i = 0; i < 4; ++i)
-    {
-      bits |= static_cast<std::uint32_t>(byte()) << (8 * i);
-    }
-    float f;
-    std::memcpy(&f, &bits, sizeof f);
-    return f;
-  }
-  // Mostly a plain value (centimetres over +-327 m); one in 16 an arbitrary float (NaN, Inf, huge).
-  float coordinate() { return (byte() & 15) == 0 ? f32() : static_cast<float>(i16()) / 100.0f; }
-  std::size_t left() const { return pos_ < size_ ? size_ - pos_ : 0; }
-
-private:
-  const std::uint8_t* data_;
-  std::size_t size_;
-  std::size_t pos_ = 0;
-};
-
-void require(bool condition)
-{
-  if (!condition)
-  {
-    std::abort();
-  }
-}
+using aloam_fuzz::ByteSource;
+using aloam_fuzz::require;
 
 // A cloud of up to 63 points, rings non-decreasing (as registration writes them) unless the input says.
 aloam::Cloud makeCloud(ByteSource& in)
