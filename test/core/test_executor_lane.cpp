@@ -35,6 +35,7 @@
 
 #include <gtest/gtest.h>
 
+#include "latch.h"
 #include "aloam_nodelet/core/executor.h"
 
 namespace aloam
@@ -58,29 +59,7 @@ pid_t threadId()
   return static_cast<pid_t>(syscall(SYS_gettid));
 }
 
-/// A flag one thread sets and others wait for.
-class Latch
-{
-public:
-  void open()
-  {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      open_ = true;
-    }
-    cv_.notify_all();
-  }
-  void wait()
-  {
-    std::unique_lock<std::mutex> lock(mutex_);
-    cv_.wait(lock, [this] { return open_; });
-  }
-
-private:
-  std::mutex mutex_;
-  std::condition_variable cv_;
-  bool open_ = false;
-};
+using aloam_test::Latch;
 
 std::vector<pid_t> threadsOfThisProcess()
 {

@@ -17,6 +17,7 @@
 
 #include <gtest/gtest.h>
 
+#include "latch.h"
 #include "aloam_nodelet/core/executor.h"
 
 namespace aloam
@@ -25,34 +26,7 @@ namespace
 {
 using Clock = std::chrono::steady_clock;
 
-/// A flag one thread sets and others wait for.
-class Latch
-{
-public:
-  void open()
-  {
-    {
-      std::lock_guard<std::mutex> lock(mutex_);
-      open_ = true;
-    }
-    cv_.notify_all();
-  }
-  void wait()
-  {
-    std::unique_lock<std::mutex> lock(mutex_);
-    cv_.wait(lock, [this] { return open_; });
-  }
-  bool isOpen()
-  {
-    std::lock_guard<std::mutex> lock(mutex_);
-    return open_;
-  }
-
-private:
-  std::mutex mutex_;
-  std::condition_variable cv_;
-  bool open_ = false;
-};
+using aloam_test::Latch;
 
 std::size_t threadsOfThisProcess()
 {
