@@ -12,8 +12,9 @@ if ! command -v clang++ >/dev/null; then
   echo "SKIPPED fuzzing: clang++ not installed"
   exit 77
 fi
-# The fuzz targets take libFuzzer's main; the objects they link (stage messages) the same flags without it.
-object_flags=(-std=c++17 -g -O1 -fsanitize=address,undefined -fno-sanitize-recover=undefined
+# The fuzz targets take libFuzzer's main; the objects they link (stage messages) are instrumented for it
+# too (fuzzer-no-link: coverage without a second main), so the fuzzer is guided inside the stages.
+object_flags=(-std=c++17 -g -O1 -fsanitize=address,undefined,fuzzer-no-link -fno-sanitize-recover=undefined
   -I "$root/include" -isystem /usr/include/eigen3 -isystem /usr/include/pcl-1.13)
 flags=("${object_flags[@]}" -fsanitize=fuzzer)
 stage_messages=false
@@ -54,7 +55,12 @@ fi
 mkdir -p "$out/stage_obj"
 sources=("$root"/src/core/*.cpp "$root/src/ros/stage_messages.cpp" "$root/src/ros/conversions.cpp"
   "$root/src/ros/pointcloud2_reader.cpp")
-# Objects are kept in OUT_DIR and rebuilt when a source or any header is newer (the first build takes minutes).
+# Objects are kept in OUT_DIR and rebuilt when a source or any header is newer, or the flags changed (the
+# first build takes minutes).
+if [ "$(cat "$out/stage_obj/.flags" 2>/dev/null)" != "${object_flags[*]}" ]; then
+  rm -f "$out"/stage_obj/*.o
+  printf '%s' "${object_flags[*]}" >"$out/stage_obj/.flags"
+fi
 objects=() stale=()
 for src in "${sources[@]}"; do
   obj="$out/stage_obj/$(basename "$src" .cpp).o"
