@@ -17,7 +17,10 @@ rm -rf "$results"
 aloam_log "running the catkin test suites"
 # run_tests exits 0 even when tests fail: catkin_test_results below gives the real status.
 (cd "$ALOAM_WS" && catkin_make run_tests -j1 >&2) || true
-summary=$(catkin_test_results --verbose "$results" | tee /dev/stderr | grep '^Summary:' || true)
+# (Not `tee /dev/stderr`: where stderr is a file, reopening it truncates the log written so far.)
+report=$(catkin_test_results --verbose "$results" || true)
+echo "$report" >&2
+summary=$(echo "$report" | grep '^Summary:' || true)
 catkin_status=0
 catkin_test_results "$results" >/dev/null || catkin_status=1
 # "Summary: N tests, E errors, F failures, S skipped"
