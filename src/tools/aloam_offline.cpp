@@ -624,8 +624,6 @@ int localize(const Options& opt, const aloam::PipelineConfig& config, FrameSourc
             "search_ms localize_ms x y z roll pitch yaw\n";
   }
   aloam::Pipeline pipeline(config);
-  // The localization nodelet's time policy: a jump back or an odometry restart reaches the localizer.
-  aloam::FrameAdmission admission(config.stamps);
   aloam::eval::Trajectory trajectory;
   std::vector<double> stamps, localize_ms;
   std::size_t answered = 0, localized = 0, lost = 0, rejected = 0;
@@ -655,18 +653,13 @@ int localize(const Options& opt, const aloam::PipelineConfig& config, FrameSourc
       skip();
       continue;
     }
-    const aloam::StampAdmission admitted =
-        admission.admit(out.odometry, static_cast<std::int64_t>(std::llround(frame.stamp * 1e9)));
-    if (!admitted.taken)
+    // The pipeline applied the time policy (duplicates and late stamps dropped above, odometry reset on a
+    // jump back); the localizer starts over on a jump back as in the nodelet. Odometry restarts nothing else
+    // here.
+    if (aloam::actionFor(out.stamp_verdict).reset)
     {
-      skip();
-      continue;
-    }
-    if (admitted.reset != aloam::ResetReason::kNone)
-    {
-      std::cerr << "aloam_offline: frame " << i << ": " << aloam::toString(admitted.reset)
-                << ": the localizer restarts\n";
-      localizer.restart(admitted.reset);
+      std::cerr << "aloam_offline: frame " << i << ": time jumped back: the localizer restarts\n";
+      localizer.restart(aloam::ResetReason::kJumpedBack);
     }
     const auto t0 = std::chrono::steady_clock::now();
     const aloam::LocalizationResult r = localizer.process(out.odometry);
