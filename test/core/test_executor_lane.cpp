@@ -35,7 +35,7 @@
 
 #include <gtest/gtest.h>
 
-#include "latch.h"
+#include "thread_support.h"
 #include "aloam_nodelet/core/executor.h"
 
 namespace aloam

@@ -17,7 +17,7 @@
 
 #include <gtest/gtest.h>
 
-#include "latch.h"
+#include "thread_support.h"
 #include "aloam_nodelet/core/executor.h"
 
 namespace aloam
@@ -28,15 +28,7 @@ using Clock = std::chrono::steady_clock;
 
 using aloam_test::Latch;
 
-std::size_t threadsOfThisProcess()
-{
-  std::size_t n = 0;
-  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator("/proc/self/task"))
-  {
-    ++n;
-  }
-  return n;
-}
+using aloam_test::threadsOfThisProcess;
 
 TEST(Executor, EveryIndexOnceInContiguousChunks)
 {

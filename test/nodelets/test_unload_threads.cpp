@@ -19,6 +19,7 @@
 #include <ros/ros.h>
 #include <sensor_msgs/PointCloud2.h>
 
+#include "../core/thread_support.h"
 #include "aloam_nodelet/ros/conversions.h"
 #include "aloam_nodelet/sim/long_drive.h"
 
@@ -27,15 +28,7 @@ namespace
 constexpr int kSweeps = 8;
 constexpr double kTimeout = 120.0;  // s for one sweep to be mapped, or for threads to end
 
-std::size_t threadsOfThisProcess()
-{
-  std::size_t n = 0;
-  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator("/proc/self/task"))
-  {
-    ++n;
-  }
-  return n;
-}
+using aloam_test::threadsOfThisProcess;
 
 /// Polls until this process has `count` threads (a joined thread may linger in /proc for a moment).
 bool threadsDropTo(std::size_t count)

@@ -1,11 +1,14 @@
-// A flag one thread sets and others wait for (the thread tests' hand-shakes).
+// What the thread tests share: a hand-shake flag and the count of the process's threads.
 #pragma once
 
 #include <condition_variable>
+#include <cstddef>
+#include <filesystem>
 #include <mutex>
 
 namespace aloam_test
 {
+/// A flag one thread sets and others wait for.
 class Latch
 {
 public:
@@ -33,4 +36,15 @@ private:
   std::condition_variable cv_;
   bool open_ = false;
 };
+
+/// The threads of this process now (/proc/self/task).
+inline std::size_t threadsOfThisProcess()
+{
+  std::size_t n = 0;
+  for ([[maybe_unused]] const auto& entry : std::filesystem::directory_iterator("/proc/self/task"))
+  {
+    ++n;
+  }
+  return n;
+}
 }  // namespace aloam_test
