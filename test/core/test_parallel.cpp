@@ -28,6 +28,8 @@ using Clock = std::chrono::steady_clock;
 
 using aloam_test::Latch;
 
+using aloam_test::settledThreadCount;
+using aloam_test::threadsDropTo;
 using aloam_test::threadsOfThisProcess;
 
 TEST(Executor, EveryIndexOnceInContiguousChunks)
@@ -200,22 +202,10 @@ TEST(Executor, AThrowingChunkReachesTheCallerOnceTheOthersAreDone)
   }
 }
 
-// A joined thread may still be listed for a moment (the kernel wakes the joiner before it unlists the
-// thread): waits until the count drops to `count`, or gives up after a minute.
-bool threadsDropTo(std::size_t count)
-{
-  const auto until = Clock::now() + std::chrono::minutes(1);
-  while (threadsOfThisProcess() > count && Clock::now() < until)
-  {
-    std::this_thread::sleep_for(std::chrono::milliseconds(1));
-  }
-  return threadsOfThisProcess() == count;
-}
-
 TEST(Executor, ThreadsAreJoinedOnDestruction)
 {
   Executor{ 2 }.parallelChunks(2, 2, 1, [](int, int, int) {});  // threads a sanitizer starts on first use
-  const std::size_t before = threadsOfThisProcess();
+  const std::size_t before = settledThreadCount();              // the warm-up's helper may linger for a moment
   {
     Executor executor(4);
     std::vector<int> parts(4, 0);

@@ -28,22 +28,8 @@ namespace
 constexpr int kSweeps = 8;
 constexpr double kTimeout = 120.0;  // s for one sweep to be mapped, or for threads to end
 
+using aloam_test::settledThreadCount;
 using aloam_test::threadsOfThisProcess;
-
-/// Polls until this process has `count` threads (a joined thread may linger in /proc for a moment).
-bool threadsDropTo(std::size_t count)
-{
-  const auto give_up = std::chrono::steady_clock::now() + std::chrono::duration<double>(kTimeout);
-  while (threadsOfThisProcess() != count)
-  {
-    if (std::chrono::steady_clock::now() > give_up)
-    {
-      return false;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
-  }
-  return true;
-}
 
 struct Mapped
 {
@@ -89,10 +75,10 @@ TEST(UnloadThreads, NoThreadOutlivesTheNodelets)
   ros::Publisher points_pub = nh.advertise<sensor_msgs::PointCloud2>("velodyne_points", kSweeps);
   ros::AsyncSpinner spinner(1);
   spinner.start();
-  const std::size_t before_loader = threadsOfThisProcess();
+  const std::size_t before_loader = settledThreadCount();
 
   auto loader = std::make_unique<nodelet::Loader>(false);
-  const std::size_t with_loader = threadsOfThisProcess();  // its callback threads, no nodelet yet
+  const std::size_t with_loader = settledThreadCount();  // its callback threads, no nodelet yet
   ros::param::set("/laser_mapping/tf_mode", "rep105");
   aloam::sim::LongDrive drive;
   const aloam::SensorModel sensor = *aloam::SensorModel::fromPreset("VLP16");
@@ -141,11 +127,11 @@ TEST(UnloadThreads, NoThreadOutlivesTheNodelets)
     {
       EXPECT_TRUE(loader->unload(name)) << name;
     }
-    EXPECT_TRUE(threadsDropTo(with_loader))
+    EXPECT_TRUE(aloam_test::threadsDropTo(with_loader, kTimeout))
         << threadsOfThisProcess() << " threads after unloading, " << with_loader << " before loading";
   }
   loader.reset();
-  EXPECT_TRUE(threadsDropTo(before_loader))
+  EXPECT_TRUE(aloam_test::threadsDropTo(before_loader, kTimeout))
       << threadsOfThisProcess() << " threads without the loader, " << before_loader << " before it";
   spinner.stop();
 }
