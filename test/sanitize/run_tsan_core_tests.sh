@@ -10,19 +10,14 @@ root="$(cd "$(dirname "$0")/../.." && pwd)"
 source "$root/test/sanitize/sanitize_common.sh"
 sanitize_build_core_tests "$root" "$out" test_core_tsan -fsanitize=thread || exit 1
 
-# Every report is printed (halt_on_error=0) and makes the process exit 66 at the end; the log is also
-# searched, since a test binary that exits on its own path could hide the exit code.
-# second_deadlock_stack: lock-order reports show both acquisitions.
 log="$out/test_core_tsan.log"
 start=$SECONDS
 status=0
-TSAN_OPTIONS="halt_on_error=0 exitcode=66 second_deadlock_stack=1 history_size=7 print_suppressions=1 suppressions=$root/test/sanitize/tsan.supp" \
-  "$out/test_core_tsan" --gtest_brief=1 >"$log" 2>&1 || status=$?
+TSAN_OPTIONS="$(tsan_options "$root")" "$out/test_core_tsan" --gtest_brief=1 >"$log" 2>&1 || status=$?
 tail -n 3 "$log"
 echo "ran the core tests under ThreadSanitizer in $((SECONDS - start)) s (log: $log)"
-reports=$(grep -c '^WARNING: ThreadSanitizer' "$log" || true)
+reports=$(tsan_reports "$log")
 if [ "$status" -ne 0 ] || [ "$reports" -ne 0 ]; then
-  grep -A3 '^SUMMARY: ThreadSanitizer' "$log" | grep '^SUMMARY' | sort | uniq -c || true
   echo "FAILED core tests under ThreadSanitizer: exit $status, $reports reports (see $log)"
   exit 1
 fi

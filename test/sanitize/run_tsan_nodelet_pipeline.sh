@@ -9,6 +9,7 @@ set -euo pipefail
 out="$(mkdir -p "$1" && cd "$1" && pwd)"
 sweeps="${2:-40}"
 root="$(cd "$(dirname "$0")/../.." && pwd)"
+source "$root/test/sanitize/sanitize_common.sh"
 ws="$out/ws"
 mkdir -p "$ws/src" "$out/run" "$out/ros_home/log"
 ln -sfn "$root" "$ws/src/aloam_nodelet"
@@ -48,13 +49,10 @@ for _ in $(seq 1 300); do
   sleep 0.2
 done
 
-# Every report is printed (halt_on_error=0) and makes the host exit 66 at the end; the log is searched too.
 log="$out/host.log"
 start=$SECONDS
 status=0
-tsan_options="halt_on_error=0 exitcode=66 second_deadlock_stack=1 history_size=7 print_suppressions=1"
-tsan_options+=" suppressions=$root/test/sanitize/tsan.supp"
-"${export_env[@]}" "TSAN_OPTIONS=$tsan_options" bash -c '
+"${export_env[@]}" "TSAN_OPTIONS=$(tsan_options "$root")" bash -c '
   source "$1/devel/setup.bash" && exec timeout --kill-after=30 1800 "$2" "$3" "$4"' _ "$ws" "$host" "$out/run" "$sweeps" \
   >"$log" 2>&1 || status=$?
 # (The host runs in the same clean environment, with only this workspace sourced.)
@@ -65,11 +63,8 @@ echo "ran the nodelet pipeline under ThreadSanitizer in $((SECONDS - start)) s (
 failed=0
 grep -q "^nodelet library: $ws/devel/lib/libaloam_nodelets.so" "$log" ||
   { echo "the host did not load the instrumented nodelet library from $ws"; failed=1; }
-reports=$(grep -c '^WARNING: ThreadSanitizer' "$log" || true)
-if [ "$reports" -ne 0 ]; then
-  grep '^SUMMARY: ThreadSanitizer' "$log" | sort | uniq -c || true
-  failed=1
-fi
+reports=$(tsan_reports "$log")
+[ "$reports" -eq 0 ] || failed=1
 if [ "$status" -ne 0 ] || [ "$failed" -ne 0 ]; then
   echo "FAILED the nodelet pipeline under ThreadSanitizer: exit $status, $reports reports (see $log)"
   exit 1

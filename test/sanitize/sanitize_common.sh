@@ -1,6 +1,25 @@
 # Sourced (not run) by run_sanitized_core_tests.sh (AddressSanitizer + UBSan) and run_tsan_core_tests.sh
 # (ThreadSanitizer): both build the ROS-free core and its gtest suite outside catkin (the core needs no ROS)
-# the same way and differ only in the sanitizer flags and in how they judge the run.
+# the same way and differ only in the sanitizer flags and in how they judge the run. The two ThreadSanitizer
+# checks (those core tests and run_tsan_nodelet_pipeline.sh) share its options and its report count.
+
+# tsan_options ROOT: every report is printed (halt_on_error=0) and makes the process exit 66 at the end;
+# second_deadlock_stack: lock-order reports show both acquisitions; the documented suppressions.
+tsan_options() {
+  echo "halt_on_error=0 exitcode=66 second_deadlock_stack=1 history_size=7 print_suppressions=1" \
+    "suppressions=$1/test/sanitize/tsan.supp"
+}
+
+# tsan_reports LOG: prints how many reports LOG holds (the log is searched as well as the exit code read,
+# since a process that exits on its own path could hide the code); their summaries, counted, go to stderr.
+tsan_reports() {
+  local reports
+  reports=$(grep -c '^WARNING: ThreadSanitizer' "$1" || true)
+  if [ "$reports" -ne 0 ]; then
+    grep '^SUMMARY: ThreadSanitizer' "$1" | sort | uniq -c >&2 || true
+  fi
+  echo "$reports"
+}
 
 # Not in the sanitized suite: test_kitti_accuracy (real data through the dataset reader, a single-threaded
 # accuracy check that takes minutes without a sanitizer) and test_param_defaults (reads the source tree's
