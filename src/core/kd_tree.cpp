@@ -11,11 +11,10 @@ namespace
 // scanned axis by axis, 32 measured best of 8, 16, 24, 32, 48, 64 on KITTI (aloam_kd_tree_bench: the
 // odometry and mapping queries, and the builds after the pose); scanned point by point, 16 had been.
 constexpr int kLeafSize = 32;
-
 }  // namespace
 
 /// The best candidates so far, nearest first, at most `k` of them, all below the search radius. Kept in
-/// the caller's vectors, sized to k up front and cut to the count found at the end.
+/// the caller's vectors, sized to k up front; finish() cuts them to the count found.
 class KdTree::Candidates
 {
 public:
@@ -25,13 +24,6 @@ public:
     index_.resize(static_cast<std::size_t>(k));
     sq_distance_.resize(static_cast<std::size_t>(k));
   }
-  ~Candidates()
-  {
-    index_.resize(static_cast<std::size_t>(size_));
-    sq_distance_.resize(static_cast<std::size_t>(size_));
-  }
-  Candidates(const Candidates&) = delete;
-  Candidates& operator=(const Candidates&) = delete;
 
   /// Squared distance a new point must beat.
   float bound() const { return bound_; }
@@ -61,7 +53,13 @@ public:
     }
   }
 
-  int size() const { return size_; }
+  /// Cuts the caller's vectors to the candidates found; returns their count.
+  int finish()
+  {
+    index_.resize(static_cast<std::size_t>(size_));
+    sq_distance_.resize(static_cast<std::size_t>(size_));
+    return size_;
+  }
 
 private:
   int k_;
@@ -216,12 +214,10 @@ int KdTree::nearest(const Point& query, float max_sq_distance, float* sq_distanc
     return -1;
   }
   const float q[3] = { query.x, query.y, query.z };
-  {
-    Candidates found(1, max_sq_distance, skip, index, distance);
-    float offset[3] = { 0.0f, 0.0f, 0.0f };
-    search(0, q, found, 0.0f, offset);
-  }
-  if (index.empty())
+  Candidates found(1, max_sq_distance, skip, index, distance);
+  float offset[3] = { 0.0f, 0.0f, 0.0f };
+  search(0, q, found, 0.0f, offset);
+  if (found.finish() == 0)
   {
     return -1;
   }
@@ -235,16 +231,14 @@ int KdTree::nearest(const Point& query, float max_sq_distance, float* sq_distanc
 int KdTree::nearestK(const Point& query, int k, float max_sq_distance, std::vector<int>& index,
                      std::vector<float>& sq_distance) const
 {
+  Candidates found(std::max(k, 0), max_sq_distance, -1, index, sq_distance);
+  if (k > 0 && !nodes_.empty() && isFinite(query))
   {
-    Candidates found(std::max(k, 0), max_sq_distance, -1, index, sq_distance);
-    if (k > 0 && !nodes_.empty() && isFinite(query))
-    {
-      const float q[3] = { query.x, query.y, query.z };
-      float offset[3] = { 0.0f, 0.0f, 0.0f };
-      search(0, q, found, 0.0f, offset);
-    }
+    const float q[3] = { query.x, query.y, query.z };
+    float offset[3] = { 0.0f, 0.0f, 0.0f };
+    search(0, q, found, 0.0f, offset);
   }
-  return static_cast<int>(index.size());
+  return found.finish();
 }
 
 }  // namespace aloam

@@ -6,11 +6,9 @@
 // fixed time.
 #include <chrono>
 #include <condition_variable>
-#include <filesystem>
 #include <memory>
 #include <mutex>
 #include <string>
-#include <thread>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -29,6 +27,7 @@ constexpr int kSweeps = 8;
 constexpr double kTimeout = 120.0;  // s for one sweep to be mapped, or for threads to end
 
 using aloam_test::settledThreadCount;
+using aloam_test::threadsDropTo;
 using aloam_test::threadsOfThisProcess;
 
 struct Mapped
@@ -127,11 +126,11 @@ TEST(UnloadThreads, NoThreadOutlivesTheNodelets)
     {
       EXPECT_TRUE(loader->unload(name)) << name;
     }
-    EXPECT_TRUE(aloam_test::threadsDropTo(with_loader, kTimeout))
+    EXPECT_TRUE(threadsDropTo(with_loader, kTimeout))
         << threadsOfThisProcess() << " threads after unloading, " << with_loader << " before loading";
   }
   loader.reset();
-  EXPECT_TRUE(aloam_test::threadsDropTo(before_loader, kTimeout))
+  EXPECT_TRUE(threadsDropTo(before_loader, kTimeout))
       << threadsOfThisProcess() << " threads without the loader, " << before_loader << " before it";
   spinner.stop();
 }
