@@ -28,7 +28,8 @@ struct Executor::Region
   void* context = nullptr;
   std::atomic<int> next{ 1 };  // the next part to claim (part 0 is the caller's)
   std::atomic<bool> failed{ false };
-  int joined = 0;  // helpers inside; guarded by the executor's mutex
+  int caller_cpu = -1;  // where the caller started it (sched_getcpu), for helpers to keep off
+  int joined = 0;       // helpers inside; guarded by the executor's mutex
   std::condition_variable done_cv;
   std::mutex error_mutex;
   std::exception_ptr error;
@@ -52,6 +53,45 @@ struct Executor::Region
     }
   }
 };
+
+namespace
+{
+/// Keeps a helper off its caller's CPU while it works on the caller's region. After an idle gap the
+/// kernel may wake the helper on the CPU of the thread that woke it although another one is idle (seen
+/// on virtual machines, whose idle vCPUs the guest takes for busy); the two then share one CPU and the
+/// region gains nothing from the helper. If the helper finds itself there, it leaves that CPU out of its
+/// affinity until the region is done, which moves it to another allowed one; the previous affinity is
+/// restored afterwards. Nothing happens where the helper already runs elsewhere, or where it may run on
+/// no other CPU (a manager pinned with taskset, a one-CPU cpuset).
+class OffCallerCpu
+{
+public:
+  explicit OffCallerCpu(int caller_cpu)
+  {
+    if (caller_cpu < 0 || caller_cpu >= CPU_SETSIZE || sched_getcpu() != caller_cpu ||
+        pthread_getaffinity_np(pthread_self(), sizeof(previous_), &previous_) != 0)
+    {
+      return;
+    }
+    cpu_set_t others = previous_;
+    CPU_CLR(caller_cpu, &others);
+    moved_ = CPU_COUNT(&others) > 0 && pthread_setaffinity_np(pthread_self(), sizeof(others), &others) == 0;
+  }
+  ~OffCallerCpu()
+  {
+    if (moved_)
+    {
+      pthread_setaffinity_np(pthread_self(), sizeof(previous_), &previous_);
+    }
+  }
+  OffCallerCpu(const OffCallerCpu&) = delete;
+  OffCallerCpu& operator=(const OffCallerCpu&) = delete;
+
+private:
+  cpu_set_t previous_{};
+  bool moved_ = false;
+};
+}  // namespace
 
 int Executor::effectiveParts(int count, int parts, int min_chunk)
 {
@@ -94,6 +134,7 @@ void Executor::runChunks(int count, int parts, int min_chunk, ChunkFn fn, void* 
   region.context = context;
   if (!helpers_.empty())
   {
+    region.caller_cpu = sched_getcpu();
     {
       std::lock_guard<std::mutex> lock(mutex_);
       regions_.push_back(&region);
@@ -153,7 +194,10 @@ void Executor::helperLoop()
     }
     ++region->joined;
     lock.unlock();
-    runRegionChunks(*region);
+    {
+      const OffCallerCpu off(region->caller_cpu);
+      runRegionChunks(*region);
+    }
     lock.lock();
     if (--region->joined == 0)
     {

@@ -138,15 +138,16 @@ MatchResiduals::MatchResiduals(const std::vector<LineMatch>& lines, const std::v
 
 bool MatchResiduals::Evaluate(double const* const* parameters, double* residuals, double** jacobians) const
 {
-  // Below this many matches per thread, handing work over costs more than it saves.
-  constexpr int kMinMatchesPerThread = 512;
+  // Below this many matches a chunk costs more to hand over than it saves; several chunks per thread
+  // balance the load (rows are independent, so the chunking does not change the result).
+  constexpr int kMinMatchesPerChunk = 512;
   const PoseTerms pose(parameters[0], parameters[1]);
   double* jq = jacobians != nullptr ? jacobians[0] : nullptr;
   double* jt = jacobians != nullptr ? jacobians[1] : nullptr;
   const int n_lines = static_cast<int>(lines_.size());
   const int n_all = n_lines + static_cast<int>(planes_.size());
   // Rows: 3 per line match, then 1 per plane match.
-  parallelChunks(executor_, n_all, threads_, kMinMatchesPerThread,
+  parallelChunks(executor_, n_all, threads_ * kChunksPerThread, kMinMatchesPerChunk,
                  [&](int begin, int end, int)
                  {
                    for (int i = begin; i < end; ++i)

@@ -7,8 +7,10 @@
 #include <sys/syscall.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <condition_variable>
+#include <cstdio>
 #include <mutex>
 #include <stdexcept>
 #include <thread>
@@ -199,6 +201,116 @@ TEST(Executor, AThrowingChunkReachesTheCallerOnceTheOthersAreDone)
     executor.parallelChunks(3, 3, 1, [&](int begin, int end, int part) { parts[part] = end - begin; });
     EXPECT_EQ(parts, std::vector<int>({ 1, 1, 1 }));
   }
+}
+
+cpu_set_t affinityOf(pid_t tid)
+{
+  cpu_set_t mask;
+  CPU_ZERO(&mask);
+  EXPECT_EQ(sched_getaffinity(tid, sizeof(mask), &mask), 0);
+  return mask;
+}
+
+pid_t threadId()
+{
+  return static_cast<pid_t>(syscall(SYS_gettid));
+}
+
+// A helper may leave its caller's CPU for a region (executor.cpp, OffCallerCpu): inside a chunk its
+// affinity is the original one or that less one CPU, and after the region it is the original again. To
+// make the helper start on its caller's CPU, the caller is pinned to the CPU the helper ran on last.
+TEST(Executor, HelpersGetTheirAffinityBackAfterARegion)
+{
+  const cpu_set_t original = affinityOf(0);
+  if (CPU_COUNT(&original) < 2)
+  {
+    GTEST_SKIP() << "one CPU allowed: a helper has nowhere to move";
+  }
+  Executor executor(2);
+  std::mutex mutex;
+  std::vector<pid_t> helpers;
+  int helper_cpu = -1;
+  int narrowed = 0;
+  bool narrowed_wrongly = false;
+  const pid_t caller = threadId();
+  for (int round = 0; round < 200; ++round)
+  {
+    int last_helper_cpu = -1;
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      last_helper_cpu = helper_cpu;
+    }
+    if (round % 2 == 1 && last_helper_cpu >= 0)
+    {
+      cpu_set_t there;
+      CPU_ZERO(&there);
+      CPU_SET(last_helper_cpu, &there);
+      ASSERT_EQ(sched_setaffinity(0, sizeof(there), &there), 0);
+    }
+    std::vector<int> parts(4, 0);
+    executor.parallelChunks(4, 4, 1,
+                            [&](int begin, int end, int part)
+                            {
+                              parts[part] = end - begin;
+                              const pid_t tid = threadId();
+                              if (tid == caller)
+                              {
+                                return;
+                              }
+                              const cpu_set_t inside = affinityOf(0);
+                              cpu_set_t both;
+                              CPU_AND(&both, &inside, &original);
+                              std::lock_guard<std::mutex> lock(mutex);
+                              helper_cpu = sched_getcpu();
+                              const int removed = CPU_COUNT(&original) - CPU_COUNT(&inside);
+                              narrowed += removed > 0 ? 1 : 0;
+                              narrowed_wrongly |= !CPU_EQUAL(&both, &inside) || removed > 1;
+                              if (std::find(helpers.begin(), helpers.end(), tid) == helpers.end())
+                              {
+                                helpers.push_back(tid);
+                              }
+                            });
+    ASSERT_EQ(sched_setaffinity(0, sizeof(original), &original), 0);
+    ASSERT_EQ(parts, std::vector<int>({ 1, 1, 1, 1 }));
+  }
+  EXPECT_FALSE(narrowed_wrongly);
+  std::lock_guard<std::mutex> lock(mutex);
+  std::printf("helper chunks run off a narrowed affinity: %d\n", narrowed);
+  for (const pid_t tid : helpers)
+  {
+    const cpu_set_t after = affinityOf(tid);
+    EXPECT_TRUE(CPU_EQUAL(&after, &original)) << "helper " << tid << " kept a narrowed affinity";
+  }
+}
+
+// Pinned to one CPU (taskset, a one-CPU cpuset) a helper has nowhere to go: it stays, and the regions
+// complete as ever.
+TEST(Executor, RegionsCompleteWithTheProcessPinnedToOneCpu)
+{
+  std::thread pinned(
+      [&]
+      {
+        cpu_set_t one;
+        CPU_ZERO(&one);
+        CPU_SET(sched_getcpu(), &one);
+        ASSERT_EQ(sched_setaffinity(0, sizeof(one), &one), 0);
+        Executor executor(3);  // its helpers inherit the one CPU
+        for (int round = 0; round < 50; ++round)
+        {
+          std::vector<int> parts(6, 0);
+          std::vector<int> counts(6, 0);
+          executor.parallelChunks(6, 6, 1,
+                                  [&](int begin, int end, int part)
+                                  {
+                                    parts[part] = end - begin;
+                                    const cpu_set_t inside = affinityOf(0);
+                                    counts[part] = CPU_COUNT(&inside);
+                                  });
+          ASSERT_EQ(parts, std::vector<int>(6, 1));
+          ASSERT_EQ(counts, std::vector<int>(6, 1));
+        }
+      });
+  pinned.join();
 }
 
 TEST(Executor, ThreadsAreJoinedOnDestruction)

@@ -36,9 +36,16 @@ namespace aloam
 /// three were within 4 % (28.1 / 27.0 / 27.1). TBB measured more than 5 % slower, so it is not used.
 /// A bounded spin (helpers and the caller awake 0 / 50 / 200 us before sleeping) paced at 10 Hz, 3
 /// interleaved rounds, to the pose medians 30.9 / 30.0 / 29.4 ms: within run-to-run noise, so no spin.
-/// Wake-ups are not what pacing costs: a condition-variable wake takes about 20 us here after 70 ms idle,
-/// and a trace of the regions showed the chunks themselves slower when paced (the caller's share of the
-/// regions 12.8 ms per sweep back to back, 16.5 ms paced: caches and clocks cold after the idle gap).
+/// A wake-up itself is cheap (a condition-variable wake takes about 20 us here after 70 ms idle), but
+/// where it lands is not: paced at 10 Hz on this 2-vCPU virtual machine, the kernel woke the helper on
+/// its caller's CPU in about half of all regions (none back to back) while the other CPU idled, so the
+/// two took turns on one CPU: the caller waited 8.3 ms per sweep in the run queue
+/// (/proc/thread-self/schedstat), and to the pose took 29.7 ms paced against 18-21 ms back to back. A
+/// helper that finds itself on its caller's CPU therefore leaves it for the region (executor.cpp,
+/// OffCallerCpu): run-queue wait 0.35 ms, to the pose 23.0 ms paced (2 interleaved rounds, 29.7 / 27.8
+/// -> 23.0 / 22.7 ms), live through the nodelets (3 interleaved rounds) median 30.8 -> 27.0 ms. Caches
+/// cold after the idle gap cost the rest (the caller's share of the regions 12.8 ms per sweep back to
+/// back, 16.5 ms paced).
 class Executor
 {
 public:
@@ -142,6 +149,13 @@ private:
   std::shared_ptr<Lane> lane_;
   std::shared_ptr<JobState> state_;
 };
+
+/// How many chunks a loop whose iterations differ in cost (correspondence searches, residuals) is cut
+/// into per thread: a thread done early takes the chunks left, so a late or slow helper holds nobody up.
+/// 8 measured best of 1 / 4 / 8 (KITTI 00, 2 threads, paced at 10 Hz: to the pose 23.5 / 23.4 / 21.5 ms
+/// mean in one round, 23.9 / 23.7 / 23.1 in another; live medians over 3 interleaved rounds 32.1 vs
+/// 31.2 ms with 1 and 8).
+inline constexpr int kChunksPerThread = 8;
 
 /// executor->parallelChunks(...), or without an executor every chunk in turn on the calling thread (the
 /// same chunks, so the same results).

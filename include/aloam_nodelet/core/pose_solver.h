@@ -173,8 +173,10 @@ template <typename MatchLine, typename MatchPlane>
 MatchSolveResult matchAndSolve(Pose& pose, std::size_t line_points, std::size_t plane_points,
                                const MatchSolveOptions& options, MatchLine&& match_line, MatchPlane&& match_plane)
 {
-  // Below this many points per thread, starting a thread costs more than it saves.
-  constexpr int kMinPointsPerThread = 256;
+  // Below this many points a chunk costs more to hand over than it saves. Several chunks per thread, so
+  // that a thread done early (edge and plane searches differ in cost, a helper may start late) takes
+  // more; each point writes only its own slot, so the chunking does not change the result.
+  constexpr int kMinPointsPerChunk = 256;
   MatchSlots slots;
   slots.resize(line_points, plane_points);
   const int n_lines = static_cast<int>(line_points);
@@ -183,7 +185,7 @@ MatchSolveResult matchAndSolve(Pose& pose, std::size_t line_points, std::size_t 
   for (int outer = 0; outer < options.outer_iterations; ++outer)
   {
     const double scale = outer == 0 ? options.first_search_scale : 1.0;
-    parallelChunks(options.executor, n_all, options.threads, kMinPointsPerThread,
+    parallelChunks(options.executor, n_all, options.threads * kChunksPerThread, kMinPointsPerChunk,
                    [&](int begin, int end, int)
                    {
                      for (int i = begin; i < end; ++i)
