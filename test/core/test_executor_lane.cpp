@@ -54,12 +54,8 @@ constexpr auto kChildTimeout = std::chrono::minutes(4);
 // How long the child waits for one condition (the idle-priority gate may be starved for a while).
 constexpr auto kConditionTimeout = std::chrono::minutes(1);
 
-pid_t threadId()
-{
-  return static_cast<pid_t>(syscall(SYS_gettid));
-}
-
 using aloam_test::Latch;
+using aloam_test::threadId;
 
 std::vector<pid_t> threadsOfThisProcess()
 {

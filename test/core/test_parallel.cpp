@@ -4,7 +4,6 @@
 // on conditions, so they hold on a loaded machine and under ThreadSanitizer.
 #include <sched.h>
 #include <sys/resource.h>
-#include <sys/syscall.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -28,6 +27,7 @@ namespace
 using Clock = std::chrono::steady_clock;
 
 using aloam_test::Latch;
+using aloam_test::threadId;
 
 using aloam_test::settledThreadCount;
 using aloam_test::threadsDropTo;
@@ -209,11 +209,6 @@ cpu_set_t affinityOf(pid_t tid)
   CPU_ZERO(&mask);
   EXPECT_EQ(sched_getaffinity(tid, sizeof(mask), &mask), 0);
   return mask;
-}
-
-pid_t threadId()
-{
-  return static_cast<pid_t>(syscall(SYS_gettid));
 }
 
 // A helper may leave its caller's CPU for a region (executor.cpp, OffCallerCpu): inside a chunk its
@@ -463,14 +458,14 @@ TEST(ExecutorJob, DestructionWaitsForARunningJob)
 TEST(ExecutorJob, RunsAtTheCreatorsPriority)
 {
   Executor executor(1);
-  const int nice_here = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
+  const int nice_here = getpriority(PRIO_PROCESS, static_cast<id_t>(threadId()));
   std::atomic<int> policy{ -1 };
   std::atomic<int> nice{ 99 };
   Executor::Job job = executor.makeJob(
       [&]
       {
         policy = sched_getscheduler(0);
-        nice = getpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)));
+        nice = getpriority(PRIO_PROCESS, static_cast<id_t>(threadId()));
       });
   job.request();
   job.waitForRuns(1);

@@ -1,5 +1,10 @@
-// What the thread tests share: a hand-shake flag and the count of the process's threads.
+// What the thread tests share: a hand-shake flag, the calling thread's id and the count of the process's
+// threads.
 #pragma once
+
+#include <sys/syscall.h>
+#include <sys/types.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <condition_variable>
@@ -10,6 +15,12 @@
 
 namespace aloam_test
 {
+/// The calling thread's kernel id (what /proc/self/task lists and sched_getaffinity takes).
+inline pid_t threadId()
+{
+  return static_cast<pid_t>(syscall(SYS_gettid));
+}
+
 /// A flag one thread sets and others wait for.
 class Latch
 {
