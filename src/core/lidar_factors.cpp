@@ -127,6 +127,103 @@ void evaluatePlane(const PlaneMatch& m, const PoseTerms& pose, double* r, double
   }
 }
 
+void NormalTerms::add(const NormalTerms& other)
+{
+  normal += other.normal;
+  gradient += other.gradient;
+  cost += other.cost;
+}
+
+namespace
+{
+// Adds one match's rows (residual r, tangent Jacobian j), robustified as robustify() does, to the upper
+// triangle of `upper`, to `gradient` and to `cost`.
+template <int Rows>
+void addRows(Eigen::Matrix<double, Rows, 1> r, Eigen::Matrix<double, Rows, 6> j, double delta, double* upper,
+             double* gradient, double& cost)
+{
+  const double s = r.squaredNorm();
+  if (delta > 0.0 && s > delta * delta)
+  {
+    const double norm = std::sqrt(s);
+    const double rho = 2.0 * delta * norm - delta * delta;
+    const double g = std::sqrt(rho / s);
+    const double two_dg = (delta * norm - rho) / (s * s * g);
+    const Eigen::Matrix<double, 1, 6> r_j = r.transpose() * j;
+    j = g * j + two_dg * r * r_j;
+    r *= g;
+  }
+  int k = 0;
+  for (int a = 0; a < 6; ++a)
+  {
+    for (int b = a; b < 6; ++b, ++k)
+    {
+      double sum = 0.0;
+      for (int i = 0; i < Rows; ++i)
+      {
+        sum += j(i, a) * j(i, b);
+      }
+      upper[k] += sum;
+    }
+    double sum = 0.0;
+    for (int i = 0; i < Rows; ++i)
+    {
+      sum += j(i, a) * r[i];
+    }
+    gradient[a] += sum;
+  }
+  cost += 0.5 * r.squaredNorm();
+}
+}  // namespace
+
+void accumulateMatches(const std::vector<LineMatch>& lines, const std::vector<PlaneMatch>& planes, int begin, int end,
+                       const PoseTerms& pose, double huber_delta, NormalTerms& terms)
+{
+  // In the tangent, rotating by delta turns the rotated point y = a p by 2 delta x y: d y / d delta =
+  // -2 [y]x. For a line, r = (x - a) x u, so d r / d x = -[u]x and d r / d delta = 2 [u]x [y]x =
+  // 2 (y u^T - (u . y) I); for a plane, r = n . x + d, so d r / d delta = 2 (y x n)^T.
+  const int n_lines = static_cast<int>(lines.size());
+  double upper[21] = {};
+  double gradient[6] = {};
+  double cost = 0.0;
+  for (int i = begin; i < end; ++i)
+  {
+    if (i < n_lines)
+    {
+      const LineMatch& m = lines[i];
+      const Eigen::Vector3d y = pose.a * m.point;
+      const Eigen::Vector3d& u = m.direction;
+      Eigen::Matrix<double, 3, 6> j;
+      j.leftCols<3>() = 2.0 * (y * u.transpose() - u.dot(y) * Eigen::Matrix3d::Identity());
+      j.rightCols<3>() = -cross(u);
+      addRows<3>((y + pose.t - m.a).cross(u), j, huber_delta, upper, gradient, cost);
+    }
+    else
+    {
+      const PlaneMatch& m = planes[i - n_lines];
+      const Eigen::Vector3d y = pose.a * m.point;
+      Eigen::Matrix<double, 1, 6> j;
+      j.leftCols<3>() = 2.0 * y.cross(m.normal).transpose();
+      j.rightCols<3>() = m.normal.transpose();
+      addRows<1>(Eigen::Matrix<double, 1, 1>(m.normal.dot(y + pose.t) + m.d), j, huber_delta, upper, gradient, cost);
+    }
+  }
+  int k = 0;
+  for (int a = 0; a < 6; ++a)
+  {
+    for (int b = a; b < 6; ++b, ++k)
+    {
+      terms.normal(a, b) += upper[k];
+      if (b != a)
+      {
+        terms.normal(b, a) += upper[k];
+      }
+    }
+    terms.gradient[a] += gradient[a];
+  }
+  terms.cost += cost;
+}
+
 MatchResiduals::MatchResiduals(const std::vector<LineMatch>& lines, const std::vector<PlaneMatch>& planes,
                                double huber_delta, int threads, Executor* executor)
   : lines_(lines), planes_(planes), huber_delta_(huber_delta), threads_(threads), executor_(executor)

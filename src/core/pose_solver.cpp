@@ -1,11 +1,10 @@
 #include "aloam_nodelet/core/pose_solver.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 #include <Eigen/Eigenvalues>
-
-#include "aloam_nodelet/core/ceres_compat.h"
 
 namespace aloam
 {
@@ -13,19 +12,7 @@ namespace
 {
 constexpr int kTangentSize = 6;  // rotation (3) then translation (3)
 using TangentMatrix = Eigen::Matrix<double, kTangentSize, kTangentSize>;
-
-// Adds the rows of one match to J^T J, the rotation columns taken into the manifold's tangent.
-template <int Rows>
-void accumulateNormal(const double* r_jq, const double* r_jt, const Eigen::Matrix<double, 4, 3>& plus,
-                      TangentMatrix& normal)
-{
-  const Eigen::Map<const Eigen::Matrix<double, Rows, 4, Eigen::RowMajor>> jq(r_jq);
-  const Eigen::Map<const Eigen::Matrix<double, Rows, 3, Eigen::RowMajor>> jt(r_jt);
-  Eigen::Matrix<double, Rows, kTangentSize> j;
-  j.template leftCols<3>() = jq * plus;
-  j.template rightCols<3>() = jt;
-  normal.noalias() += j.transpose() * j;
-}
+using TangentVector = Eigen::Matrix<double, kTangentSize, 1>;
 }  // namespace
 
 void MatchSlots::resize(std::size_t line_points, std::size_t plane_points)
@@ -65,25 +52,157 @@ std::pair<int, int> PoseProblem::addMatches(const MatchSlots& slots)
   return { static_cast<int>(lines_.size() - lines_before), static_cast<int>(planes_.size() - planes_before) };
 }
 
+NormalTerms PoseProblem::terms(const double* q, const double* t, double huber_delta) const
+{
+  // Blocks of a fixed size, so that the sums do not depend on the threads; two blocks per chunk at least
+  // (below that a chunk costs more to hand over than it saves).
+  constexpr int kMatchesPerBlock = 256;
+  const PoseTerms pose(q, t);
+  const int n = matchCount();
+  const int blocks = (n + kMatchesPerBlock - 1) / kMatchesPerBlock;
+  std::vector<NormalTerms> partial(static_cast<std::size_t>(blocks));
+  parallelChunks(executor_, blocks, threads_ * kChunksPerThread, 2,
+                 [&](int begin, int end, int)
+                 {
+                   for (int b = begin; b < end; ++b)
+                   {
+                     accumulateMatches(lines_, planes_, b * kMatchesPerBlock, std::min(n, (b + 1) * kMatchesPerBlock),
+                                       pose, huber_delta, partial[b]);
+                   }
+                 });
+  NormalTerms sum;
+  for (const NormalTerms& block : partial)
+  {
+    sum.add(block);
+  }
+  return sum;
+}
+
+namespace
+{
+// (q, t) moved by a tangent step: q <- [cos|w|, sin|w| w / |w|] * q as the unit-quaternion manifold
+// defines it (quaternionPlusJacobian), t <- t + v.
+void plus(const double* q, const double* t, const TangentVector& step, double* q_out, double* t_out)
+{
+  const Eigen::Vector3d w = step.head<3>();
+  const double angle = w.norm();
+  const Eigen::Map<const Eigen::Quaterniond> from(q);
+  Eigen::Map<Eigen::Quaterniond> to(q_out);
+  if (angle > 0.0)
+  {
+    const Eigen::Vector3d v = std::sin(angle) / angle * w;
+    to = Eigen::Quaterniond(std::cos(angle), v.x(), v.y(), v.z()) * from;
+  }
+  else
+  {
+    to = from;
+  }
+  for (int i = 0; i < 3; ++i)
+  {
+    t_out[i] = t[i] + step[3 + i];
+  }
+}
+
+// Ceres's measure of a gradient in the ambient coordinates: max |x - plus(x, -gradient)|.
+double gradientMaxNorm(const double* q, const double* t, const TangentVector& gradient)
+{
+  double q_moved[4], t_moved[3];
+  plus(q, t, -gradient, q_moved, t_moved);
+  double norm = 0.0;
+  for (int i = 0; i < 4; ++i)
+  {
+    norm = std::max(norm, std::fabs(q[i] - q_moved[i]));
+  }
+  for (int i = 0; i < 3; ++i)
+  {
+    norm = std::max(norm, std::fabs(t[i] - t_moved[i]));
+  }
+  return norm;
+}
+}  // namespace
+
 void PoseProblem::solve(int max_iterations)
 {
   if (matchCount() == 0)
   {
     return;
   }
-  ceres::Problem problem;  // owns the cost function and the manifold
-  addQuaternionBlock(problem, q_);
-  problem.AddParameterBlock(t_, 3);
-  problem.AddResidualBlock(new MatchResiduals(lines_, planes_, huber_delta_, threads_, executor_), nullptr, q_, t_);
-  // Ceres itself on one thread: MatchResiduals shares the evaluation on the stage's executor (Ceres's own
-  // pool measured slower at the sensor rate).
-  ceres::Solver::Options options;
-  options.linear_solver_type = ceres::DENSE_QR;
-  options.max_num_iterations = max_iterations;
-  options.minimizer_progress_to_stdout = false;
-  options.logging_type = ceres::SILENT;
-  ceres::Solver::Summary summary;
-  ceres::Solve(options, &problem, &summary);
+  // ceres::Solver::Options' defaults for Levenberg-Marquardt.
+  constexpr double kInitialRadius = 1e4, kMaxRadius = 1e16, kMinRadius = 1e-32;
+  constexpr double kMinRelativeDecrease = 1e-3, kMinDiagonal = 1e-6, kMaxDiagonal = 1e32;
+  constexpr double kFunctionTolerance = 1e-6, kGradientTolerance = 1e-10, kParameterTolerance = 1e-8;
+  NormalTerms current = terms(q_, t_, huber_delta_);
+  if (gradientMaxNorm(q_, t_, current.gradient) <= kGradientTolerance)
+  {
+    return;
+  }
+  // Jacobi scaling: columns scaled by 1 / (1 + their norm) at the start, kept for the whole solve.
+  const TangentVector scale = (1.0 + current.normal.diagonal().array().sqrt()).inverse().matrix();
+  double radius = kInitialRadius, decrease_factor = 2.0, accepted_norm = -1.0;
+  const auto reject = [&]
+  {
+    radius /= decrease_factor;
+    decrease_factor *= 2.0;
+  };
+  for (int iteration = 0; iteration < max_iterations && radius > kMinRadius; ++iteration)
+  {
+    // The step minimizes |J s + r|^2 + |D s|^2 / radius in the scaled columns, D^2 = diag(J^T J) clamped.
+    const TangentMatrix normal = scale.asDiagonal() * current.normal * scale.asDiagonal();
+    const TangentVector gradient = scale.asDiagonal() * current.gradient;
+    TangentMatrix damped = normal;
+    damped.diagonal() += normal.diagonal().cwiseMax(kMinDiagonal).cwiseMin(kMaxDiagonal) / radius;
+    const TangentVector scaled_step = -damped.ldlt().solve(gradient);
+    const double model_decrease = -(gradient.dot(scaled_step) + 0.5 * scaled_step.dot(normal * scaled_step));
+    if (!(model_decrease > 0.0) || !scaled_step.allFinite())
+    {
+      reject();  // Ceres's invalid step
+      continue;
+    }
+    const TangentVector step = scale.cwiseProduct(scaled_step);
+    double q_new[4], t_new[3];
+    plus(q_, t_, step, q_new, t_new);
+    // Ceres measures the step in the ambient coordinates, against the norm of the point the last accepted
+    // step reached (none before the first: its x_norm starts at -1, so the test cannot pass then).
+    if (accepted_norm >= 0.0)
+    {
+      double moved = 0.0;
+      for (int i = 0; i < 4; ++i)
+      {
+        moved += (q_new[i] - q_[i]) * (q_new[i] - q_[i]);
+      }
+      for (int i = 0; i < 3; ++i)
+      {
+        moved += (t_new[i] - t_[i]) * (t_new[i] - t_[i]);
+      }
+      if (std::sqrt(moved) <= kParameterTolerance * (accepted_norm + kParameterTolerance))
+      {
+        return;
+      }
+    }
+    const NormalTerms candidate = terms(q_new, t_new, huber_delta_);
+    const double decrease = std::isfinite(candidate.cost) ? current.cost - candidate.cost : -current.cost;
+    if (std::fabs(decrease) <= kFunctionTolerance * current.cost)
+    {
+      return;  // converged; Ceres keeps the point it had
+    }
+    const double quality = decrease / model_decrease;
+    if (!(quality > kMinRelativeDecrease))
+    {
+      reject();
+      continue;
+    }
+    std::copy(q_new, q_new + 4, q_);
+    std::copy(t_new, t_new + 3, t_);
+    current = candidate;
+    accepted_norm = std::sqrt(Eigen::Map<const Eigen::Vector4d>(q_).squaredNorm() +
+                              Eigen::Map<const Eigen::Vector3d>(t_).squaredNorm());
+    radius = std::min(kMaxRadius, radius / std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * quality - 1.0, 3)));
+    decrease_factor = 2.0;
+    if (gradientMaxNorm(q_, t_, current.gradient) <= kGradientTolerance)
+    {
+      return;
+    }
+  }
 }
 
 Pose PoseProblem::pose() const
@@ -110,20 +229,7 @@ Degeneracy PoseProblem::degeneracy(double lever_arm, double threshold) const
     out.degenerate = kTangentSize;
     return out;
   }
-  const Eigen::Matrix<double, 4, 3> plus = quaternionPlusJacobian(q_);
-  TangentMatrix normal = TangentMatrix::Zero();
-  const PoseTerms pose(q_, t_);
-  double r[3], jq[12], jt[9];
-  for (const LineMatch& m : lines_)
-  {
-    evaluateLine(m, pose, r, jq, jt);
-    accumulateNormal<3>(jq, jt, plus, normal);
-  }
-  for (const PlaneMatch& m : planes_)
-  {
-    evaluatePlane(m, pose, r, jq, jt);
-    accumulateNormal<1>(jq, jt, plus, normal);
-  }
+  TangentMatrix normal = terms(q_, t_, 0.0).normal;
   Eigen::Matrix<double, kTangentSize, 1> scale;
   scale << Eigen::Vector3d::Constant(1.0 / lever_arm), Eigen::Vector3d::Ones();
   normal = scale.asDiagonal() * normal * scale.asDiagonal();

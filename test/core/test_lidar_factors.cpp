@@ -224,5 +224,39 @@ TEST(LidarFactors, QuaternionTangentMatchesCeres)
   }
 }
 
+// PoseProblem's normal equations (accumulateMatches) are MatchResiduals' rows taken into the manifold's
+// tangent: J = [dq * plus, dt], normal J^T J, gradient J^T r, cost |r|^2 / 2, with and without the loss.
+TEST(LidarFactors, NormalTermsAreTheResidualsInTheTangent)
+{
+  std::mt19937 rng(13);
+  for (int trial = 0; trial < 10; ++trial)
+  {
+    Scene s = randomScene(rng, 30 + 10 * trial, 100, false);
+    for (const double delta : { 0.0, 0.1, 1.0 })
+    {
+      const Evaluation e = evaluate(MatchResiduals(s.lines, s.planes, delta, 1), s.q, s.t);
+      Eigen::MatrixXd j(e.residual.size(), 6);
+      j.leftCols(3) = e.dq * quaternionPlusJacobian(s.q);
+      j.rightCols(3) = e.dt;
+      const Eigen::MatrixXd normal = j.transpose() * j;
+      const Eigen::VectorXd gradient = j.transpose() * e.residual;
+      const double cost = 0.5 * e.residual.squaredNorm();
+
+      // In three pieces, as PoseProblem adds blocks: the sums do not depend on where the cuts fall.
+      const int n = static_cast<int>(s.lines.size() + s.planes.size());
+      NormalTerms terms;
+      const PoseTerms pose(s.q, s.t);
+      for (const auto& [begin, end] : { std::pair<int, int>{ 0, 7 }, { 7, n - 5 }, { n - 5, n } })
+      {
+        accumulateMatches(s.lines, s.planes, begin, end, pose, delta, terms);
+      }
+      EXPECT_LT((terms.normal - normal).norm(), 1e-10 * normal.norm()) << "delta " << delta;
+      EXPECT_LT((terms.gradient - gradient).norm(), 1e-10 * (1.0 + gradient.norm())) << "delta " << delta;
+      EXPECT_NEAR(terms.cost, cost, 1e-12 * cost) << "delta " << delta;
+      EXPECT_EQ(terms.normal, terms.normal.transpose());
+    }
+  }
+}
+
 }  // namespace
 }  // namespace aloam

@@ -24,7 +24,7 @@ struct LaserMappingConfig
   int submap_half_z = 1;          ///< ... and z
   double corner_leaf_size = 0.4;  ///< voxel leaf for edge points, scan and map (m)
   double surf_leaf_size = 0.8;    ///< voxel leaf for plane points, scan and map (m)
-  int max_iterations = 4;         ///< Ceres iterations per solve
+  int max_iterations = 4;         ///< Levenberg-Marquardt iterations per solve
   int outer_iterations = 2;       ///< correspondence searches per frame, each followed by a solve
   /// Searches for a frame odometry found hard (OdometryFrame::hard(): motion hypotheses tried, degraded
   /// or remapped): its pose is less certain, so mapping searches more often from it. 4 took the rotation

@@ -16,7 +16,7 @@ namespace aloam
 {
 struct LaserOdometryConfig
 {
-  int max_iterations = 4;               ///< Ceres iterations per solve
+  int max_iterations = 4;               ///< Levenberg-Marquardt iterations per solve
   int outer_iterations = 2;             ///< correspondence searches per sweep, each followed by a solve
   double distance_sq_threshold = 25.0;  ///< nearest neighbour farther than this (m^2) is no match
   double nearby_scan = 2.5;             ///< rings searched on each side for the second/third point

@@ -72,6 +72,24 @@ private:
   Executor* executor_;
 };
 
+/// Gauss-Newton terms of a set of matches in the manifold's tangent (the rotation delta of
+/// quaternionPlusJacobian, then the translation): cost 1/2 sum |r|^2, gradient J^T r, normal matrix J^T J.
+struct NormalTerms
+{
+  Eigen::Matrix<double, 6, 6> normal = Eigen::Matrix<double, 6, 6>::Zero();
+  Eigen::Matrix<double, 6, 1> gradient = Eigen::Matrix<double, 6, 1>::Zero();
+  double cost = 0.0;
+
+  void add(const NormalTerms& other);
+};
+
+/// Adds the matches with index in [begin, end) to `terms`, counted as MatchResiduals counts them (lines
+/// first, then planes), at `pose` (a unit quaternion), each robustified with the Huber loss of scale
+/// `huber_delta` (<= 0: none). The same terms as MatchResiduals' rows times quaternionPlusJacobian, up to
+/// rounding, at about half the arithmetic: the tangent Jacobian is taken directly.
+void accumulateMatches(const std::vector<LineMatch>& lines, const std::vector<PlaneMatch>& planes, int begin, int end,
+                       const PoseTerms& pose, double huber_delta, NormalTerms& terms);
+
 /// The residual of one match at `pose` without any loss (3 values for a line, 1 for a plane) into `r`, and
 /// its row-major Jacobians into `jq` (rows x 4) and `jt` (rows x 3), which may be null.
 void evaluateLine(const LineMatch& m, const PoseTerms& pose, double* r, double* jq, double* jt);
