@@ -1,6 +1,8 @@
 #include "aloam_nodelet/core/lidar_factors.h"
 
 #include <cmath>
+#include <initializer_list>
+#include <utility>
 
 namespace aloam
 {
@@ -17,8 +19,9 @@ using RowMajor33 = Eigen::Matrix<double, 3, 3, Eigen::RowMajor>;
 
 // Rescales the n residuals of one match so that their squared norm becomes the Huber cost
 // rho(s) = 2 delta sqrt(s) - delta^2 (s = |r|^2 beyond delta^2; below, rho(s) = s and nothing changes):
-// r' = g(s) r with g = sqrt(rho / s), and J' = g J + 2 g'(s) r (r^T J) for each Jacobian block given.
-void robustify(int n, double delta, double* r, double* jq, double* jt)
+// r' = g(s) r with g = sqrt(rho / s), and J' = g J + 2 g'(s) r (r^T J) for each Jacobian block given
+// (row-major, n rows of the given column count; null blocks are skipped).
+void robustify(int n, double delta, double* r, std::initializer_list<std::pair<double*, int>> jacobians)
 {
   double s = 0.0;
   for (int i = 0; i < n; ++i)
@@ -33,7 +36,7 @@ void robustify(int n, double delta, double* r, double* jq, double* jt)
   const double rho = 2.0 * delta * norm - delta * delta;
   const double g = std::sqrt(rho / s);
   const double two_dg = (delta * norm - rho) / (s * s * g);  // 2 g'(s), from rho'(s) = delta / sqrt(s)
-  for (const auto& [jacobian, cols] : { std::pair<double*, int>{ jq, 4 }, std::pair<double*, int>{ jt, 3 } })
+  for (const auto& [jacobian, cols] : jacobians)
   {
     if (jacobian == nullptr)
     {
@@ -136,23 +139,16 @@ void NormalTerms::add(const NormalTerms& other)
 
 namespace
 {
-// Adds one match's rows (residual r, tangent Jacobian j), robustified as robustify() does, to the upper
-// triangle of `upper`, to `gradient` and to `cost`.
 template <int Rows>
-void addRows(Eigen::Matrix<double, Rows, 1> r, Eigen::Matrix<double, Rows, 6> j, double delta, double* upper,
-             double* gradient, double& cost)
+using TangentRows = Eigen::Matrix<double, Rows, 6, Eigen::RowMajor>;
+
+// Adds one match's rows (residual r, tangent Jacobian j), robustified, to the upper triangle of `upper`,
+// to `gradient` and to `cost`.
+template <int Rows>
+void addRows(Eigen::Matrix<double, Rows, 1> r, TangentRows<Rows> j, double delta, double* upper, double* gradient,
+             double& cost)
 {
-  const double s = r.squaredNorm();
-  if (delta > 0.0 && s > delta * delta)
-  {
-    const double norm = std::sqrt(s);
-    const double rho = 2.0 * delta * norm - delta * delta;
-    const double g = std::sqrt(rho / s);
-    const double two_dg = (delta * norm - rho) / (s * s * g);
-    const Eigen::Matrix<double, 1, 6> r_j = r.transpose() * j;
-    j = g * j + two_dg * r * r_j;
-    r *= g;
-  }
+  robustify(Rows, delta, r.data(), { { j.data(), 6 } });
   int k = 0;
   for (int a = 0; a < 6; ++a)
   {
@@ -193,7 +189,7 @@ void accumulateMatches(const std::vector<LineMatch>& lines, const std::vector<Pl
       const LineMatch& m = lines[i];
       const Eigen::Vector3d y = pose.a * m.point;
       const Eigen::Vector3d& u = m.direction;
-      Eigen::Matrix<double, 3, 6> j;
+      TangentRows<3> j;
       j.leftCols<3>() = 2.0 * (y * u.transpose() - u.dot(y) * Eigen::Matrix3d::Identity());
       j.rightCols<3>() = -cross(u);
       addRows<3>((y + pose.t - m.a).cross(u), j, huber_delta, upper, gradient, cost);
@@ -202,7 +198,7 @@ void accumulateMatches(const std::vector<LineMatch>& lines, const std::vector<Pl
     {
       const PlaneMatch& m = planes[i - n_lines];
       const Eigen::Vector3d y = pose.a * m.point;
-      Eigen::Matrix<double, 1, 6> j;
+      TangentRows<1> j;
       j.leftCols<3>() = 2.0 * y.cross(m.normal).transpose();
       j.rightCols<3>() = m.normal.transpose();
       addRows<1>(Eigen::Matrix<double, 1, 1>(m.normal.dot(y + pose.t) + m.d), j, huber_delta, upper, gradient, cost);
@@ -263,7 +259,7 @@ bool MatchResiduals::Evaluate(double const* const* parameters, double* residuals
                      {
                        evaluatePlane(planes_[i - n_lines], pose, r, row_q, row_t);
                      }
-                     robustify(n, huber_delta_, r, row_q, row_t);
+                     robustify(n, huber_delta_, r, { { row_q, 4 }, { row_t, 3 } });
                    }
                  });
   return true;

@@ -103,21 +103,20 @@ void plus(const double* q, const double* t, const TangentVector& step, double* q
   }
 }
 
+// (q, t) as the one vector of Ceres's ambient coordinates.
+Eigen::Matrix<double, 7, 1> ambient(const double* q, const double* t)
+{
+  Eigen::Matrix<double, 7, 1> x;
+  x << Eigen::Map<const Eigen::Vector4d>(q), Eigen::Map<const Eigen::Vector3d>(t);
+  return x;
+}
+
 // Ceres's measure of a gradient in the ambient coordinates: max |x - plus(x, -gradient)|.
 double gradientMaxNorm(const double* q, const double* t, const TangentVector& gradient)
 {
   double q_moved[4], t_moved[3];
   plus(q, t, -gradient, q_moved, t_moved);
-  double norm = 0.0;
-  for (int i = 0; i < 4; ++i)
-  {
-    norm = std::max(norm, std::fabs(q[i] - q_moved[i]));
-  }
-  for (int i = 0; i < 3; ++i)
-  {
-    norm = std::max(norm, std::fabs(t[i] - t_moved[i]));
-  }
-  return norm;
+  return (ambient(q, t) - ambient(q_moved, t_moved)).lpNorm<Eigen::Infinity>();
 }
 }  // namespace
 
@@ -163,21 +162,10 @@ void PoseProblem::solve(int max_iterations)
     plus(q_, t_, step, q_new, t_new);
     // Ceres measures the step in the ambient coordinates, against the norm of the point the last accepted
     // step reached (none before the first: its x_norm starts at -1, so the test cannot pass then).
-    if (accepted_norm >= 0.0)
+    if (accepted_norm >= 0.0 &&
+        (ambient(q_new, t_new) - ambient(q_, t_)).norm() <= kParameterTolerance * (accepted_norm + kParameterTolerance))
     {
-      double moved = 0.0;
-      for (int i = 0; i < 4; ++i)
-      {
-        moved += (q_new[i] - q_[i]) * (q_new[i] - q_[i]);
-      }
-      for (int i = 0; i < 3; ++i)
-      {
-        moved += (t_new[i] - t_[i]) * (t_new[i] - t_[i]);
-      }
-      if (std::sqrt(moved) <= kParameterTolerance * (accepted_norm + kParameterTolerance))
-      {
-        return;
-      }
+      return;
     }
     const NormalTerms candidate = terms(q_new, t_new, huber_delta_);
     const double decrease = std::isfinite(candidate.cost) ? current.cost - candidate.cost : -current.cost;
@@ -194,8 +182,7 @@ void PoseProblem::solve(int max_iterations)
     std::copy(q_new, q_new + 4, q_);
     std::copy(t_new, t_new + 3, t_);
     current = candidate;
-    accepted_norm = std::sqrt(Eigen::Map<const Eigen::Vector4d>(q_).squaredNorm() +
-                              Eigen::Map<const Eigen::Vector3d>(t_).squaredNorm());
+    accepted_norm = ambient(q_, t_).norm();
     radius = std::min(kMaxRadius, radius / std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * quality - 1.0, 3)));
     decrease_factor = 2.0;
     if (gradientMaxNorm(q_, t_, current.gradient) <= kGradientTolerance)

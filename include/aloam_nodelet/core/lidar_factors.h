@@ -55,7 +55,9 @@ Eigen::Matrix<double, 4, 3> quaternionPlusJacobian(const double* q);
 /// residuals sum to Ceres's robust cost, sum rho(|r|^2); the Jacobians are those of the scaled residuals.
 /// One residual block instead of one per match: Ceres's bookkeeping per block cost more than the
 /// residuals themselves. The matches are evaluated in `threads` chunks on `executor` (null: on the calling
-/// thread); results depend on neither.
+/// thread); results depend on neither. The stages no longer solve with it (PoseProblem::solve works on
+/// accumulateMatches' normal equations): it is the Ceres form of their problem, the reference the tests
+/// hold PoseProblem::solve and accumulateMatches to.
 class MatchResiduals : public ceres::CostFunction
 {
 public:
