@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <functional>
 #include <numeric>
 
 #include "aloam_nodelet/core/fast_atan2.h"
@@ -49,6 +51,14 @@ double wrapFrom(double angle, double lo)
   return a + lo;
 }
 
+// A heap key: the bits of a curvature (>= 0) above a 32-bit tie breaker.
+std::uint64_t sortKey(float curvature, std::uint32_t tie)
+{
+  std::uint32_t bits;
+  std::memcpy(&bits, &curvature, sizeof bits);
+  return (static_cast<std::uint64_t>(bits) << 32) | tie;
+}
+
 float squaredGap(const Point& a, const Point& b)
 {
   const float dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
@@ -63,10 +73,10 @@ ScanRegistration::ScanRegistration(ScanRegistrationConfig config, std::shared_pt
 }
 
 void ScanRegistration::bucketByRing(const Cloud& cloud, int begin, int end, bool ring_from_field, bool time_from_field,
-                                    PartScratch& part)
+                                    InputBlock& block)
 {
-  auto& rings = part.rings;
-  auto& azimuths = part.azimuths;
+  auto& rings = block.rings;
+  auto& azimuths = block.azimuths;
   for (auto& r : rings)
   {
     r.clear();
@@ -80,8 +90,8 @@ void ScanRegistration::bucketByRing(const Cloud& cloud, int begin, int end, bool
   {
     rings.resize(static_cast<std::size_t>(model_rings));
   }
-  RegistrationStats& stats = part.stats;
-  part.have_start = false;
+  RegistrationStats& stats = block.stats;
+  block.have_start = false;
   const double min_sq = config_.minimum_range * config_.minimum_range;
   const double max_sq = config_.maximum_range * config_.maximum_range;
 
@@ -128,10 +138,10 @@ void ScanRegistration::bucketByRing(const Cloud& cloud, int begin, int end, bool
     else
     {
       const double azimuth = fastAtan2(double(in.y), double(in.x));
-      if (!part.have_start)
+      if (!block.have_start)
       {
-        part.have_start = true;
-        part.start_azimuth = azimuth;
+        block.have_start = true;
+        block.start_azimuth = azimuth;
       }
       if (azimuths.size() < rings.size())
       {
@@ -143,77 +153,95 @@ void ScanRegistration::bucketByRing(const Cloud& cloud, int begin, int end, bool
   }
 }
 
-void ScanRegistration::gatherRings(bool time_from_field, Cloud& full, std::vector<int>& ring_begin)
+void ScanRegistration::gatherRing(int r, bool time_from_field, const std::vector<int>& ring_begin, Cloud& full)
 {
-  std::size_t rings = 0, total = 0;
-  for (const PartScratch& part : parts_)
+  std::size_t at = static_cast<std::size_t>(ring_begin[r]);
+  for (const InputBlock& block : blocks_)
   {
-    rings = std::max(rings, part.rings.size());
-    for (const auto& r : part.rings)
+    if (r >= static_cast<int>(block.rings.size()))
     {
-      total += r.size();
+      continue;
     }
-  }
-  full.points.reserve(total);
-  scratch_.azimuths.clear();
-  ring_begin.clear();
-  // Ring by ring, each part's share in input order: the firing order within every ring is kept.
-  for (std::size_t r = 0; r < rings; ++r)
-  {
-    ring_begin.push_back(static_cast<int>(full.size()));
-    for (const PartScratch& part : parts_)
+    std::copy(block.rings[r].begin(), block.rings[r].end(), full.points.begin() + at);
+    if (!time_from_field && r < static_cast<int>(block.azimuths.size()))
     {
-      if (r < part.rings.size())
-      {
-        full.points.insert(full.points.end(), part.rings[r].begin(), part.rings[r].end());
-      }
-      if (!time_from_field && r < part.azimuths.size())
-      {
-        scratch_.azimuths.insert(scratch_.azimuths.end(), part.azimuths[r].begin(), part.azimuths[r].end());
-      }
+      std::copy(block.azimuths[r].begin(), block.azimuths[r].end(), scratch_.azimuths.begin() + at);
     }
+    at += block.rings[r].size();
   }
-  ring_begin.push_back(static_cast<int>(full.size()));
-  setUnorganized(full);
-}
-
-void ScanRegistration::timesFromAzimuth(double start_azimuth, const std::vector<int>& ring_begin, Cloud& full)
-{
-  // Spin direction from the data: the sum of azimuth steps along the rings (points are in firing order
-  // within a ring). Velodyne drivers spin clockwise seen from above; KITTI stores its sweeps the other way.
-  const auto& azimuth = scratch_.azimuths;
-  double turn = 0.0;
-  for (std::size_t r = 0; r + 1 < ring_begin.size(); ++r)
+  if (!time_from_field)
   {
+    // The azimuth the ring turns through in firing order: its sign over the sweep is the spin direction.
+    const auto& azimuth = scratch_.azimuths;
+    double turn = 0.0;
     for (int k = ring_begin[r] + 1; k < ring_begin[r + 1]; ++k)
     {
       turn += wrapFrom(double(azimuth[k]) - azimuth[k - 1], -M_PI);
     }
+    scratch_.ring_turn[r] = turn;
   }
-  const double direction = turn >= 0.0 ? 1.0 : -1.0;
+}
 
-  for (std::size_t r = 0; r + 1 < ring_begin.size(); ++r)
+void ScanRegistration::gatherRings(bool time_from_field, Cloud& full, std::vector<int>& ring_begin)
+{
+  std::size_t rings = 0;
+  for (const InputBlock& block : blocks_)
   {
-    double progress = 0.0;  // radians turned since the sweep start
-    for (int k = ring_begin[r]; k < ring_begin[r + 1]; ++k)
+    rings = std::max(rings, block.rings.size());
+  }
+  // Where each ring starts in the full cloud: ring by ring, each block's share in input order, so the
+  // firing order within every ring is kept.
+  ring_begin.assign(rings + 1, 0);
+  for (std::size_t r = 0; r < rings; ++r)
+  {
+    std::size_t size = 0;
+    for (const InputBlock& block : blocks_)
     {
-      if (k == ring_begin[r])
-      {
-        progress = wrapFrom(direction * (double(azimuth[k]) - start_azimuth), -kRingStartLead);
-      }
-      else
-      {
-        progress += direction * wrapFrom(double(azimuth[k]) - azimuth[k - 1], -M_PI);
-        // Past a full turn: the ring's returns came in two blocks (two lasers that share a nominal
-        // ring, as in KITTI's calibrated HDL-64); the second block starts over.
-        if (progress > kTwoPi + kFullTurnMargin)
-        {
-          progress -= kTwoPi;
-        }
-      }
-      const double fraction = std::clamp(progress / kTwoPi, 0.0, 1.0);
-      full.points[k].time = static_cast<float>(fraction * config_.scan_period);
+      size += r < block.rings.size() ? block.rings[r].size() : 0;
     }
+    ring_begin[r + 1] = ring_begin[r] + static_cast<int>(size);
+  }
+  full.points.resize(static_cast<std::size_t>(ring_begin.back()));
+  if (!time_from_field)
+  {
+    scratch_.azimuths.resize(full.size());
+  }
+  scratch_.ring_turn.assign(rings, 0.0);
+  // The rings copy in parallel; the sweep sums their turns in ring order, whatever the chunks.
+  executor_->parallelChunks(static_cast<int>(rings), config_.threads * kChunksPerThread, 1,
+                            [&](int first, int last, int)
+                            {
+                              for (int r = first; r < last; ++r)
+                              {
+                                gatherRing(r, time_from_field, ring_begin, full);
+                              }
+                            });
+  setUnorganized(full);
+}
+
+void ScanRegistration::timesFromAzimuth(double start_azimuth, double direction, int begin, int end, Cloud& full)
+{
+  // Points are in firing order within a ring: the azimuth turned since the sweep start, step by step.
+  const auto& azimuth = scratch_.azimuths;
+  double progress = 0.0;  // radians turned since the sweep start
+  for (int k = begin; k < end; ++k)
+  {
+    if (k == begin)
+    {
+      progress = wrapFrom(direction * (double(azimuth[k]) - start_azimuth), -kRingStartLead);
+    }
+    else
+    {
+      progress += direction * wrapFrom(double(azimuth[k]) - azimuth[k - 1], -M_PI);
+      // Past a full turn: the ring's returns came in two blocks (two lasers that share a nominal
+      // ring, as in KITTI's calibrated HDL-64); the second block starts over.
+      if (progress > kTwoPi + kFullTurnMargin)
+      {
+        progress -= kTwoPi;
+      }
+    }
+    const double fraction = std::clamp(progress / kTwoPi, 0.0, 1.0);
+    full.points[k].time = static_cast<float>(fraction * config_.scan_period);
   }
 }
 
@@ -297,7 +325,7 @@ void ScanRegistration::suppressNeighbours(const Cloud& full, int index, int ring
   }
 }
 
-void ScanRegistration::pickSector(const Cloud& full, int begin, int end, PartScratch& part)
+void ScanRegistration::pickSector(const Cloud& full, int begin, int end, RingGroup& part)
 {
   // [begin, end) lies inside one ring whose bounds are [ring_begin, ring_end).
   const int w = config_.curvature_half_window;
@@ -310,24 +338,25 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, PartScr
   auto& heap = part.candidates;
   const auto threshold = static_cast<float>(config_.curvature_threshold);
 
-  // Edges: the free candidates above the threshold, sharpest first. A heap yields them in that order
-  // for the few a sector takes without sorting the whole sector; ties go to the lower index.
-  const auto less_sharp_than = [&](int a, int b)
-  { return curvature[a] < curvature[b] || (curvature[a] == curvature[b] && a > b); };
+  // Edges: the free candidates above the threshold, sharpest first; then planes: those below it,
+  // flattest first, each with ties to the lower index. A heap yields them in that order for the few a
+  // sector takes without sorting the whole sector. Its keys hold the curvature's bits above the index
+  // (a curvature is a sum of squares, and the bits of floats >= 0 order as they do), so one integer
+  // comparison orders both; the sharp keys hold the index complemented, for the same tie rule.
   heap.clear();
   for (int i = begin; i < end; ++i)
   {
     if (curvature[i] > threshold)
     {
-      heap.push_back(i);
+      heap.push_back(sortKey(curvature[i], ~static_cast<std::uint32_t>(i)));
     }
   }
-  std::make_heap(heap.begin(), heap.end(), less_sharp_than);
+  std::make_heap(heap.begin(), heap.end());
   int taken = 0;
   while (!heap.empty() && taken < config_.max_less_sharp_per_sector)
   {
-    std::pop_heap(heap.begin(), heap.end(), less_sharp_than);
-    const int i = heap.back();
+    std::pop_heap(heap.begin(), heap.end());
+    const int i = static_cast<int>(~static_cast<std::uint32_t>(heap.back()));
     heap.pop_back();
     if (picked[i] != kFree)
     {
@@ -348,23 +377,21 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, PartScr
     suppressNeighbours(full, i, ring_begin, ring_end);
   }
 
-  // Planes: the free candidates below the threshold, flattest first.
-  const auto flatter_than = [&](int a, int b)
-  { return curvature[a] > curvature[b] || (curvature[a] == curvature[b] && a > b); };
   heap.clear();
   for (int i = begin; i < end; ++i)
   {
     if (curvature[i] < threshold)
     {
-      heap.push_back(i);
+      heap.push_back(sortKey(curvature[i], static_cast<std::uint32_t>(i)));
     }
   }
-  std::make_heap(heap.begin(), heap.end(), flatter_than);
+  const auto flatter = std::greater<std::uint64_t>();
+  std::make_heap(heap.begin(), heap.end(), flatter);
   taken = 0;
   while (!heap.empty() && taken < config_.max_flat_per_sector)
   {
-    std::pop_heap(heap.begin(), heap.end(), flatter_than);
-    const int i = heap.back();
+    std::pop_heap(heap.begin(), heap.end(), flatter);
+    const int i = static_cast<int>(static_cast<std::uint32_t>(heap.back()));
     heap.pop_back();
     if (picked[i] != kFree)
     {
@@ -386,8 +413,8 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, PartScr
   }
 }
 
-void ScanRegistration::extractRings(const Cloud& full, const std::vector<int>& ring_begin, int first_ring, int end_ring,
-                                    PartScratch& part)
+void ScanRegistration::extractRings(Cloud& full, const std::vector<int>& ring_begin, int first_ring, int end_ring,
+                                    const SweepStart* sweep_start, RingGroup& group)
 {
   const int w = config_.curvature_half_window;
   const int min_ring_points = 2 * w + 1 + config_.sectors;
@@ -395,6 +422,18 @@ void ScanRegistration::extractRings(const Cloud& full, const std::vector<int>& r
   {
     const int begin = ring_begin[r];
     const int end = ring_begin[r + 1];
+    if (sweep_start != nullptr)
+    {
+      timesFromAzimuth(sweep_start->azimuth, sweep_start->direction, begin, end, full);
+    }
+    for (int i = begin; i < end; ++i)
+    {
+      const Point& p = full.points[i];
+      scratch_.range[i] = std::sqrt(p.x * p.x + p.y * p.y + p.z * p.z);
+      scratch_.curvature[i] = 0.0f;
+      scratch_.picked[i] = kFree;
+      scratch_.label[i] = kPlain;
+    }
     if (end - begin < min_ring_points)
     {
       continue;
@@ -415,9 +454,9 @@ void ScanRegistration::extractRings(const Cloud& full, const std::vector<int>& r
       }
       scratch_.curvature[i] = dx * dx + dy * dy + dz * dz;
     }
-    markUnreliable(full, begin, end, part.stats);
+    markUnreliable(full, begin, end, group.stats);
 
-    part.less_flat_ring.clear();
+    group.less_flat_ring.clear();
     const int first = begin + w;
     const int span = (end - w) - first;
     for (int s = 0; s < config_.sectors; ++s)
@@ -426,10 +465,10 @@ void ScanRegistration::extractRings(const Cloud& full, const std::vector<int>& r
       const int ep = first + span * (s + 1) / config_.sectors;
       if (ep > sp)
       {
-        pickSector(full, sp, ep, part);
+        pickSector(full, sp, ep, group);
       }
     }
-    voxelDownsample(part.less_flat_ring, config_.less_flat_leaf_size, part.features.less_flat);
+    voxelDownsample(group.less_flat_ring, config_.less_flat_leaf_size, group.features.less_flat);
   }
 }
 
@@ -452,34 +491,31 @@ bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, 
   const bool time_from_field = has_time && config_.use_time_field;
   const int parts =
       cloud.size() < static_cast<std::size_t>(kMinPointsForThreads) ? 1 : std::clamp(config_.threads, 1, kMaxThreads);
-  parts_.resize(static_cast<std::size_t>(parts));
-  for (PartScratch& part : parts_)
+  blocks_.resize(static_cast<std::size_t>(parts));
+  for (InputBlock& block : blocks_)
   {
-    part.stats = RegistrationStats{};
+    block.stats = RegistrationStats{};
   }
   executor_->parallelChunks(static_cast<int>(cloud.size()), parts, 1,
                             [&](int begin, int end, int part)
-                            { bucketByRing(cloud, begin, end, ring_from_field, time_from_field, parts_[part]); });
+                            { bucketByRing(cloud, begin, end, ring_from_field, time_from_field, blocks_[part]); });
   double start_azimuth = 0.0;
   bool have_start = false;
-  for (const PartScratch& part : parts_)
+  for (const InputBlock& block : blocks_)
   {
-    stats.invalid += part.stats.invalid;
-    stats.out_of_range += part.stats.out_of_range;
-    stats.unassigned_ring += part.stats.unassigned_ring;
-    if (!have_start && part.have_start)
+    stats.invalid += block.stats.invalid;
+    stats.out_of_range += block.stats.out_of_range;
+    stats.unassigned_ring += block.stats.unassigned_ring;
+    if (!have_start && block.have_start)
     {
       have_start = true;
-      start_azimuth = part.start_azimuth;
+      start_azimuth = block.start_azimuth;
     }
   }
   std::vector<int> ring_begin;
   gatherRings(time_from_field, out.full, ring_begin);
-  if (!time_from_field)
-  {
-    timesFromAzimuth(start_azimuth, ring_begin, out.full);
-  }
-  for (std::size_t r = 0; r + 1 < ring_begin.size(); ++r)
+  const int rings = static_cast<int>(ring_begin.size()) - 1;
+  for (int r = 0; r < rings; ++r)
   {
     stats.rings += ring_begin[r + 1] > ring_begin[r] ? 1 : 0;
   }
@@ -492,56 +528,48 @@ bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, 
     out.full.clear();
     return false;
   }
-
-  const int n = static_cast<int>(out.full.size());
-  scratch_.curvature.assign(static_cast<std::size_t>(n), 0.0f);
-  scratch_.range.resize(static_cast<std::size_t>(n));
-  scratch_.picked.assign(static_cast<std::size_t>(n), kFree);
-  scratch_.label.assign(static_cast<std::size_t>(n), kPlain);
-  for (int i = 0; i < n; ++i)
+  // Without a time field, time follows the azimuth; the spin direction comes from the data: the sum of
+  // azimuth steps along the rings. Velodyne drivers spin clockwise seen from above; KITTI stores its
+  // sweeps the other way.
+  SweepStart sweep_start;
+  if (!time_from_field)
   {
-    const Point& p = out.full.points[i];
-    scratch_.range[i] = std::sqrt(p.x * p.x + p.y * p.y + p.z * p.z);
+    const double turn = std::accumulate(scratch_.ring_turn.begin(), scratch_.ring_turn.end(), 0.0);
+    sweep_start = SweepStart{ start_azimuth, turn >= 0.0 ? 1.0 : -1.0 };
   }
 
-  // Rings are independent from here on: split them over the threads in contiguous blocks of about
-  // equal point counts, then concatenate the blocks in ring order (the result does not depend on the split).
-  const int rings = static_cast<int>(ring_begin.size()) - 1;
-  std::vector<int> split(static_cast<std::size_t>(parts) + 1, rings);
-  split[0] = 0;
-  for (int part = 1, r = 0; part < parts; ++part)
+  const std::size_t n = out.full.size();
+  scratch_.curvature.resize(n);
+  scratch_.range.resize(n);
+  scratch_.picked.resize(n);
+  scratch_.label.resize(n);
+
+  // Rings are independent from here on: groups of consecutive rings go to whichever thread is free, and
+  // their features join in ring order (the result does not depend on the grouping).
+  const int groups = Executor::effectiveParts(rings, config_.threads * kChunksPerThread, 1);
+  groups_.resize(static_cast<std::size_t>(std::max(groups, 1)));
+  for (RingGroup& group : groups_)
   {
-    while (r < rings && ring_begin[r] < static_cast<long long>(n) * part / parts)
-    {
-      ++r;
-    }
-    split[part] = r;
-  }
-  for (PartScratch& part : parts_)
-  {
-    for (Cloud* c : { &part.features.sharp, &part.features.less_sharp, &part.features.flat, &part.features.less_flat })
+    for (Cloud* c :
+         { &group.features.sharp, &group.features.less_sharp, &group.features.flat, &group.features.less_flat })
     {
       c->clear();
     }
-    part.stats = RegistrationStats{};
+    group.stats = RegistrationStats{};
   }
-  executor_->parallelChunks(parts, parts, 1,
-                            [&](int first, int last, int)
-                            {
-                              for (int part = first; part < last; ++part)
-                              {
-                                extractRings(out.full, ring_begin, split[part], split[part + 1], parts_[part]);
-                              }
-                            });
-  for (const PartScratch& part : parts_)
+  executor_->parallelChunks(
+      rings, groups, 1,
+      [&](int first, int last, int group)
+      { extractRings(out.full, ring_begin, first, last, time_from_field ? nullptr : &sweep_start, groups_[group]); });
+  for (const RingGroup& group : groups_)
   {
-    const FeatureSet& f = part.features;
+    const FeatureSet& f = group.features;
     out.sharp.points.insert(out.sharp.points.end(), f.sharp.points.begin(), f.sharp.points.end());
     out.less_sharp.points.insert(out.less_sharp.points.end(), f.less_sharp.points.begin(), f.less_sharp.points.end());
     out.flat.points.insert(out.flat.points.end(), f.flat.points.begin(), f.flat.points.end());
     out.less_flat.points.insert(out.less_flat.points.end(), f.less_flat.points.begin(), f.less_flat.points.end());
-    stats.occluded += part.stats.occluded;
-    stats.grazing += part.stats.grazing;
+    stats.occluded += group.stats.occluded;
+    stats.grazing += group.stats.grazing;
   }
 
   for (Cloud* c : { &out.sharp, &out.less_sharp, &out.flat, &out.less_flat })

@@ -591,6 +591,58 @@ TEST(ScanRegistrationTest, StatsCountRejectedPoints)
   }
 }
 
+// The threads share the input in blocks and the rings in groups that depend on the thread count: the
+// features must not. Every cloud equal point for point at 1 to 5 threads, with and without the fields
+// (times from azimuth: the spin direction is summed per ring), for a sweep starting at two azimuths.
+TEST(ScanRegistrationTest, ThreadsDoNotChangeTheFeatures)
+{
+  const auto same = [](const Cloud& a, const Cloud& b)
+  {
+    if (a.size() != b.size())
+    {
+      return false;
+    }
+    for (std::size_t i = 0; i < a.size(); ++i)
+    {
+      const Point &p = a.points[i], &q = b.points[i];
+      if (p.x != q.x || p.y != q.y || p.z != q.z || p.time != q.time || p.ring != q.ring || p.intensity != q.intensity)
+      {
+        return false;
+      }
+    }
+    return true;
+  };
+  for (const Sweep* sweep : { &vlp16Sweep(), &hdl64Sweep() })
+  {
+    const Sweep turned = makeSweep(sweep == &vlp16Sweep() ? "VLP16" : "HDL64", kOtherStartAzimuth);
+    for (const Sweep* s : { sweep, &turned })
+    {
+      for (const bool fields : { true, false })
+      {
+        ScanRegistrationConfig config = configFor(s->sensor);
+        config.threads = 1;
+        const FeatureSet one = extract(*s, fields, fields, config);
+        ASSERT_GT(one.sharp.size(), 0u);
+        for (int threads = 2; threads <= 5; ++threads)
+        {
+          config.threads = threads;
+          const FeatureSet many = extract(*s, fields, fields, config);
+          const std::string what = s->sensor.name() + (fields ? " with fields, " : " without fields, ") +
+                                   std::to_string(threads) + " threads";
+          EXPECT_TRUE(same(one.full, many.full)) << what;
+          EXPECT_TRUE(same(one.sharp, many.sharp)) << what;
+          EXPECT_TRUE(same(one.less_sharp, many.less_sharp)) << what;
+          EXPECT_TRUE(same(one.flat, many.flat)) << what;
+          EXPECT_TRUE(same(one.less_flat, many.less_flat)) << what;
+          EXPECT_EQ(one.stats.occluded, many.stats.occluded) << what;
+          EXPECT_EQ(one.stats.grazing, many.stats.grazing) << what;
+          EXPECT_EQ(one.stats.rings, many.stats.rings) << what;
+        }
+      }
+    }
+  }
+}
+
 // Too few usable points: process returns false with empty clouds, and the counters still add up.
 TEST(ScanRegistrationTest, TooFewPointsGiveEmptyOutput)
 {

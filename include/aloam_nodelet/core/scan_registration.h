@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <vector>
 
@@ -63,39 +64,57 @@ public:
 private:
   struct Scratch
   {
-    std::vector<float> azimuths;  // atan2(y, x) of each point of the full cloud, without a time field
+    std::vector<float> azimuths;    // atan2(y, x) of each point of the full cloud, without a time field
+    std::vector<double> ring_turn;  // per ring, the azimuth its points turn through in firing order
     // Per point of the full cloud (each ring touches only its own points, so threads share these).
     std::vector<float> curvature;
     std::vector<float> range;
     std::vector<std::uint8_t> picked;
     std::vector<std::int8_t> label;
   };
-  /// What one thread needs and produces: its block of the input sorted into rings, then its rings' features.
-  struct PartScratch
+  /// One thread's contiguous block of the input, sorted into rings.
+  struct InputBlock
   {
     std::vector<std::vector<Point>> rings;
     std::vector<std::vector<float>> azimuths;
     bool have_start = false;  // the block's first azimuth, for the sweep's start without a time field
     double start_azimuth = 0.0;
-    std::vector<int> candidates;
-    Cloud less_flat_ring;
-    FeatureSet features;  // sharp, less_sharp, flat, less_flat of the part's rings
     RegistrationStats stats;
+  };
+  /// Consecutive rings whose features one thread extracts, and its buffers.
+  struct RingGroup
+  {
+    std::vector<std::uint64_t> candidates;  // heap keys (pickSector)
+    Cloud less_flat_ring;
+    FeatureSet features;  // sharp, less_sharp, flat, less_flat of the group's rings
+    RegistrationStats stats;
+  };
+  /// Without a time field: the azimuth the sweep starts at and the spin's sign.
+  struct SweepStart
+  {
+    double azimuth = 0.0;
+    double direction = 1.0;
   };
 
   ScanRegistrationConfig config_;
   std::shared_ptr<Executor> executor_;
   Scratch scratch_;
-  std::vector<PartScratch> parts_;
+  std::vector<InputBlock> blocks_;
+  std::vector<RingGroup> groups_;
 
   void bucketByRing(const Cloud& cloud, int begin, int end, bool ring_from_field, bool time_from_field,
-                    PartScratch& part);
+                    InputBlock& block);
+  /// The blocks' rings joined into `full`, ring after ring; `ring_begin` gets each ring's start and the end.
   void gatherRings(bool time_from_field, Cloud& full, std::vector<int>& ring_begin);
-  void timesFromAzimuth(double start_azimuth, const std::vector<int>& ring_begin, Cloud& full);
-  void extractRings(const Cloud& full, const std::vector<int>& ring_begin, int first_ring, int end_ring,
-                    PartScratch& part);
+  /// Ring `r` of every block copied to its place in `full` (and its azimuths, and its turn without a time field).
+  void gatherRing(int r, bool time_from_field, const std::vector<int>& ring_begin, Cloud& full);
+  /// The time of each point of one ring [begin, end) from its azimuth.
+  void timesFromAzimuth(double start_azimuth, double direction, int begin, int end, Cloud& full);
+  /// Rings [first_ring, end_ring): times (when `sweep_start` is given), curvature and features.
+  void extractRings(Cloud& full, const std::vector<int>& ring_begin, int first_ring, int end_ring,
+                    const SweepStart* sweep_start, RingGroup& group);
   void markUnreliable(const Cloud& full, int begin, int end, RegistrationStats& stats);
-  void pickSector(const Cloud& full, int begin, int end, PartScratch& part);
+  void pickSector(const Cloud& full, int begin, int end, RingGroup& group);
   void suppressNeighbours(const Cloud& full, int index, int ring_begin, int ring_end);
 };
 
