@@ -63,13 +63,39 @@ void LaserMapping::reset()
   evicted_total_ = 0;
 }
 
+bool LaserMapping::memoHolds(SearchMemo& memo, const Point& query)
+{
+  const float dx = query.x - memo.query[0], dy = query.y - memo.query[1], dz = query.z - memo.query[2];
+  if (memo.slack > 0.0f && 4.0f * (dx * dx + dy * dy + dz * dz) < memo.slack * memo.slack)
+  {
+    ++memo.reused;
+    return true;
+  }
+  memo.query[0] = query.x;
+  memo.query[1] = query.y;
+  memo.query[2] = query.z;
+  memo.slack = -1.0f;
+  return false;
+}
+
 bool LaserMapping::fitNeighbours(const KdTree& tree, const Cloud& cloud, const Point& query, int k,
-                                 double max_sq_distance, Neighbourhood& fit)
+                                 double max_sq_distance, Neighbourhood& fit, SearchMemo* memo)
 {
   thread_local std::vector<float> sq_dist;
-  if (tree.nearestK(query, k, static_cast<float>(max_sq_distance), fit.index, sq_dist) < k)
+  // With a memo one more neighbour: the first k are the k nearest either way, the next one gives the slack.
+  const int found =
+      tree.nearestK(query, memo != nullptr ? k + 1 : k, static_cast<float>(max_sq_distance), fit.index, sq_dist);
+  if (found < k)
   {
     return false;
+  }
+  if (memo != nullptr)
+  {
+    // Distances in floats of map coordinates (up to a few km): 1 mm covers their rounding many times.
+    constexpr float kMargin = 1e-3f;
+    const float next = found > k ? std::sqrt(sq_dist[k]) : std::sqrt(static_cast<float>(max_sq_distance));
+    memo->slack = next - std::sqrt(sq_dist[k - 1]) - kMargin;
+    fit.index.resize(static_cast<std::size_t>(k));
   }
   Eigen::Matrix3d scatter;
   centroidAndScatter(cloud, fit.index, fit.centroid, scatter);
@@ -79,51 +105,65 @@ bool LaserMapping::fitNeighbours(const KdTree& tree, const Cloud& cloud, const P
   return true;
 }
 
-bool LaserMapping::matchEdge(const Point& p, const Pose& pose, LineMatch& match) const
+bool LaserMapping::matchEdge(const Point& p, const Pose& pose, LineMatch& match, SearchMemo* memo) const
 {
+  const Point query = transformPoint(pose, p);
+  if (memo != nullptr && memoHolds(*memo, query))
+  {
+    return memo->matched;  // `match` still holds this point's line
+  }
   thread_local Neighbourhood fit;
-  if (!fitNeighbours(corner_tree_, submap_corners_, transformPoint(pose, p), config_.line_neighbours,
-                     config_.line_max_sq_distance, fit))
-  {
-    return false;
-  }
+  bool matched = fitNeighbours(corner_tree_, submap_corners_, query, config_.line_neighbours,
+                               config_.line_max_sq_distance, fit, memo);
   // A line has one dominant direction.
-  const Eigen::Vector3d& lambda = fit.eigen.eigenvalues();
-  if (!(lambda[2] > config_.line_eigen_ratio * lambda[1]))
+  matched = matched && fit.eigen.eigenvalues()[2] > config_.line_eigen_ratio * fit.eigen.eigenvalues()[1];
+  if (matched)
   {
-    return false;
+    match = LineMatch{ vec(p), fit.centroid, fit.eigen.eigenvectors().col(2) };
   }
-  match = LineMatch{ vec(p), fit.centroid, fit.eigen.eigenvectors().col(2) };
-  return true;
+  if (memo != nullptr)
+  {
+    memo->matched = matched;
+  }
+  return matched;
 }
 
-bool LaserMapping::matchPlane(const Point& p, const Pose& pose, PlaneMatch& match) const
+bool LaserMapping::matchPlane(const Point& p, const Pose& pose, PlaneMatch& match, SearchMemo* memo) const
 {
-  thread_local Neighbourhood fit;
-  if (!fitNeighbours(surf_tree_, submap_surfs_, transformPoint(pose, p), config_.plane_neighbours,
-                     config_.plane_max_sq_distance, fit))
+  const Point query = transformPoint(pose, p);
+  if (memo != nullptr && memoHolds(*memo, query))
   {
-    return false;
+    return memo->matched;  // `match` still holds this point's plane
   }
+  thread_local Neighbourhood fit;
+  bool matched = fitNeighbours(surf_tree_, submap_surfs_, query, config_.plane_neighbours,
+                               config_.plane_max_sq_distance, fit, memo);
   // The neighbours must spread in two directions: points along one scan line fit every plane through
   // that line, and their "normal" may tilt freely about it.
-  const Eigen::Vector3d& lambda = fit.eigen.eigenvalues();
-  if (!(lambda[1] > config_.plane_min_spread_ratio * lambda[2]))
+  matched = matched && fit.eigen.eigenvalues()[1] > config_.plane_min_spread_ratio * fit.eigen.eigenvalues()[2];
+  if (matched)
   {
-    return false;
-  }
-  // The normal is the direction of least spread; PCA works for planes through the origin too.
-  const Eigen::Vector3d n = fit.eigen.eigenvectors().col(0);
-  const double d = -n.dot(fit.centroid);
-  for (const int i : fit.index)
-  {
-    if (std::fabs(n.dot(vec(submap_surfs_.points[i])) + d) > config_.plane_max_distance)
+    // The normal is the direction of least spread; PCA works for planes through the origin too.
+    const Eigen::Vector3d n = fit.eigen.eigenvectors().col(0);
+    const double d = -n.dot(fit.centroid);
+    for (const int i : fit.index)
     {
-      return false;
+      if (std::fabs(n.dot(vec(submap_surfs_.points[i])) + d) > config_.plane_max_distance)
+      {
+        matched = false;
+        break;
+      }
+    }
+    if (matched)
+    {
+      match = PlaneMatch{ vec(p), n, d };
     }
   }
-  match = PlaneMatch{ vec(p), n, d };
-  return true;
+  if (memo != nullptr)
+  {
+    memo->matched = matched;
+  }
+  return matched;
 }
 
 MatchSolveResult LaserMapping::solve(Pose& pose, int outer_iterations, MappingResult& result)
@@ -131,10 +171,22 @@ MatchSolveResult LaserMapping::solve(Pose& pose, int outer_iterations, MappingRe
   MatchSolveOptions options = matchSolveOptionsOf(config_);
   options.executor = executor_.get();
   options.outer_iterations = outer_iterations;
+  const bool reuse = config_.reuse_searches;
+  corner_memo_.assign(reuse ? corner_stack_.size() : 0, SearchMemo());
+  surf_memo_.assign(reuse ? surf_stack_.size() : 0, SearchMemo());
   const MatchSolveResult r = matchAndSolve(
       pose, corner_stack_.size(), surf_stack_.size(), options,
-      [&](int i, const Pose& at, double, LineMatch& slot) { return matchEdge(corner_stack_.points[i], at, slot); },
-      [&](int i, const Pose& at, double, PlaneMatch& slot) { return matchPlane(surf_stack_.points[i], at, slot); });
+      [&](int i, const Pose& at, double, LineMatch& slot)
+      { return matchEdge(corner_stack_.points[i], at, slot, reuse ? &corner_memo_[i] : nullptr); },
+      [&](int i, const Pose& at, double, PlaneMatch& slot)
+      { return matchPlane(surf_stack_.points[i], at, slot, reuse ? &surf_memo_[i] : nullptr); });
+  for (const auto* memos : { &corner_memo_, &surf_memo_ })
+  {
+    for (const SearchMemo& memo : *memos)
+    {
+      result.reused_searches += memo.reused;
+    }
+  }
   result.corner_matches = r.lines;
   result.plane_matches = r.planes;
   result.constraint = r.constraint;

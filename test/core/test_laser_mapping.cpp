@@ -35,6 +35,8 @@ constexpr double kExactMetres = 1e-9;  // tolerance of exact compositions
 // of the error with the usual two searches it may keep at most.
 constexpr double kHardFrameMaxRotationDeg = 0.02;  // measured 0.000 (usual searches: 0.062)
 constexpr double kHardFrameGain = 0.5;
+// Reused and fresh searches: the same matches, summed in another order (m and rad).
+constexpr double kReuseTolerance = 1e-6;
 
 // Long drive for eviction: 300 m of static sweeps 3 m apart, small cubes and a small eviction radius.
 constexpr double kLongDriveLength = 300.0;
@@ -151,6 +153,51 @@ TEST(LaserMappingTest, HardFrameGetsMoreSearches)
               err_on, rot_on, err_off, rot_off);
   EXPECT_LT(rot_on, kHardFrameMaxRotationDeg);
   EXPECT_LT(rot_on, kHardFrameGain * rot_off);
+}
+
+// Reusing a search where the neighbours provably stay the same (LaserMappingConfig::reuse_searches) must
+// give the trajectory every search gives, up to rounding (the neighbours' sums in another order), and
+// must reuse some: an HDL-64 and a VLP-16 drive, distorted and not, and a hard frame 4 deg and 0.3 m off,
+// which moves the points far between its four searches.
+TEST(LaserMappingTest, ReusedSearchesGiveTheTrajectoryOfFreshOnes)
+{
+  for (const char* name : { "HDL64", "VLP16" })
+  {
+    for (const bool distorted : { true, false })
+    {
+      const SensorModel sensor = ts::preset(name);
+      Pipeline pipeline(pipelineConfig(sensor, distorted));
+      const DriveErrors e = runDrive(pipeline, sensor, shortDrive(), kShortDriveSweeps, distorted);
+      LaserMappingConfig fresh_config;
+      fresh_config.reuse_searches = false;
+      LaserMapping reusing, fresh(fresh_config);
+      int reused = 0, searched = 0;
+      double worst_m = 0.0, worst_rad = 0.0;
+      std::vector<OdometryFrame> frames = e.frames;
+      frames.back().hypotheses_tried = true;  // a hard frame, 4 deg and 0.3 m off
+      frames.back().pose = reusing.correction().inverse() * e.results.back().pose *
+                           Pose(Eigen::Quaterniond(Eigen::AngleAxisd(4.0 * M_PI / 180.0, Eigen::Vector3d::UnitZ())),
+                                Eigen::Vector3d(0.3, 0.0, 0.0));
+      for (const OdometryFrame& frame : frames)
+      {
+        const MappingResult a = reusing.process(frame);
+        const MappingResult b = fresh.process(frame);
+        EXPECT_EQ(a.status, b.status);
+        EXPECT_EQ(a.corner_matches, b.corner_matches);
+        EXPECT_EQ(a.plane_matches, b.plane_matches);
+        EXPECT_EQ(b.reused_searches, 0);
+        worst_m = std::max(worst_m, ts::translationError(a.pose, b.pose));
+        worst_rad = std::max(worst_rad, Eigen::AngleAxisd(a.pose.q.inverse() * b.pose.q).angle());
+        reused += a.reused_searches;
+        searched += a.corner_matches + a.plane_matches;
+      }
+      std::printf("[ measured ] %s %s: %d searches reused (matches %d); poses apart by %.2g m, %.2g rad\n", name,
+                  distorted ? "distorted" : "rigid", reused, searched, worst_m, worst_rad);
+      EXPECT_GT(reused, 0) << name;
+      EXPECT_LT(worst_m, kReuseTolerance) << name;
+      EXPECT_LT(worst_rad, kReuseTolerance) << name;
+    }
+  }
 }
 
 // The 40-sweep VLP-16 drive with its lane change: the error stays bounded, mapping beats odometry alone,

@@ -181,7 +181,9 @@ struct MatchSolveResult
 /// The loop of both matching stages: `outer_iterations` times, match every point from the current
 /// `pose` (match_line(i, pose, scale, slot) for i < line_points, match_plane likewise, `scale` the factor
 /// on the squared search radius: first_search_scale in the first search, 1 after; independent per point,
-/// so split over the threads), then solve from `pose`. `pose` ends at the last solution. With
+/// so split over the threads), then solve from `pose`. `pose` ends at the last solution. A slot keeps what
+/// its matcher last wrote: a matcher that knows a point's match still holds at the new pose may leave the
+/// slot as it is and return its previous verdict. With
 /// `options.remap`, every solve is remapped onto the directions it constrains (PoseProblem::remap from the
 /// pose before the solve); a solve that constrains no direction leaves the pose where it was.
 template <typename MatchLine, typename MatchPlane>
