@@ -1,9 +1,9 @@
 #include "aloam_nodelet/core/scan_registration.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstring>
-#include <functional>
 #include <numeric>
 
 #include "aloam_nodelet/core/fast_atan2.h"
@@ -51,12 +51,61 @@ double wrapFrom(double angle, double lo)
   return a + lo;
 }
 
-// A heap key: the bits of a curvature (>= 0) above a 32-bit tie breaker.
+// A sort key: the bits of a curvature (>= 0) above a 32-bit tie breaker.
 std::uint64_t sortKey(float curvature, std::uint32_t tie)
 {
   std::uint32_t bits;
   std::memcpy(&bits, &curvature, sizeof bits);
   return (static_cast<std::uint64_t>(bits) << 32) | tie;
+}
+
+// Offers the eligible indices of [begin, end) to `take` in descending order of key(i) until `takes` of
+// them were taken (take returns whether it took one). Taking never makes an index eligible again, so
+// the indices can be found a batch at a time: the kBatch largest keys below the last batch's smallest,
+// one pass each without sorting the range. A sector takes a few points from hundreds: one or two passes.
+template <typename Eligible, typename Key, typename Take>
+void takeBestFirst(int begin, int end, int takes, Eligible eligible, Key key, Take take)
+{
+  constexpr int kBatch = 16;
+  std::array<std::uint64_t, kBatch> keys;
+  std::array<int, kBatch> index;
+  bool bounded = false;
+  std::uint64_t below = 0;  // with `bounded`: only keys below this one are left
+  while (takes > 0)
+  {
+    int n = 0;
+    for (int i = begin; i < end; ++i)
+    {
+      if (!eligible(i))
+      {
+        continue;
+      }
+      const std::uint64_t k = key(i);
+      if ((bounded && k >= below) || (n == kBatch && k <= keys[n - 1]))
+      {
+        continue;
+      }
+      // Insert in descending order (the last one drops out of a full batch).
+      int at = n < kBatch ? n++ : kBatch - 1;
+      for (; at > 0 && keys[at - 1] < k; --at)
+      {
+        keys[at] = keys[at - 1];
+        index[at] = index[at - 1];
+      }
+      keys[at] = k;
+      index[at] = i;
+    }
+    for (int b = 0; b < n && takes > 0; ++b)
+    {
+      takes -= take(index[b]) ? 1 : 0;
+    }
+    if (n < kBatch)
+    {
+      return;  // no eligible index left
+    }
+    bounded = true;
+    below = keys[n - 1];
+  }
 }
 
 float squaredGap(const Point& a, const Point& b)
@@ -335,74 +384,51 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, RingGro
   auto& picked = scratch_.picked;
   auto& label = scratch_.label;
   FeatureSet& out = part.features;
-  auto& heap = part.candidates;
   const auto threshold = static_cast<float>(config_.curvature_threshold);
 
-  // Edges: the free candidates above the threshold, sharpest first; then planes: those below it,
-  // flattest first, each with ties to the lower index. A heap yields them in that order for the few a
-  // sector takes without sorting the whole sector. Its keys hold the curvature's bits above the index
-  // (a curvature is a sum of squares, and the bits of floats >= 0 order as they do), so one integer
-  // comparison orders both; the sharp keys hold the index complemented, for the same tie rule.
-  heap.clear();
-  for (int i = begin; i < end; ++i)
-  {
-    if (curvature[i] > threshold)
-    {
-      heap.push_back(sortKey(curvature[i], ~static_cast<std::uint32_t>(i)));
-    }
-  }
-  std::make_heap(heap.begin(), heap.end());
+  // Edges: the free candidates above the threshold, sharpest first, ties to the lower index.
   int taken = 0;
-  while (!heap.empty() && taken < config_.max_less_sharp_per_sector)
-  {
-    std::pop_heap(heap.begin(), heap.end());
-    const int i = static_cast<int>(~static_cast<std::uint32_t>(heap.back()));
-    heap.pop_back();
-    if (picked[i] != kFree)
-    {
-      continue;
-    }
-    ++taken;
-    if (taken <= config_.max_sharp_per_sector)
-    {
-      label[i] = kSharp;
-      out.sharp.push_back(full.points[i]);
-    }
-    else
-    {
-      label[i] = kLessSharp;
-    }
-    out.less_sharp.push_back(full.points[i]);
-    picked[i] = kTaken;
-    suppressNeighbours(full, i, ring_begin, ring_end);
-  }
+  takeBestFirst(
+      begin, end, config_.max_less_sharp_per_sector,
+      [&](int i) { return curvature[i] > threshold && picked[i] == kFree; },
+      // A curvature is a sum of squares, and the bits of floats >= 0 order as they do: the key is the
+      // curvature's bits above the complemented index, so that the larger key is the one taken first.
+      [&](int i) { return sortKey(curvature[i], ~static_cast<std::uint32_t>(i)); },
+      [&](int i)
+      {
+        if (picked[i] != kFree)
+        {
+          return false;
+        }
+        ++taken;
+        label[i] = taken <= config_.max_sharp_per_sector ? kSharp : kLessSharp;
+        if (label[i] == kSharp)
+        {
+          out.sharp.push_back(full.points[i]);
+        }
+        out.less_sharp.push_back(full.points[i]);
+        picked[i] = kTaken;
+        suppressNeighbours(full, i, ring_begin, ring_end);
+        return true;
+      });
 
-  heap.clear();
-  for (int i = begin; i < end; ++i)
-  {
-    if (curvature[i] < threshold)
-    {
-      heap.push_back(sortKey(curvature[i], static_cast<std::uint32_t>(i)));
-    }
-  }
-  const auto flatter = std::greater<std::uint64_t>();
-  std::make_heap(heap.begin(), heap.end(), flatter);
-  taken = 0;
-  while (!heap.empty() && taken < config_.max_flat_per_sector)
-  {
-    std::pop_heap(heap.begin(), heap.end(), flatter);
-    const int i = static_cast<int>(static_cast<std::uint32_t>(heap.back()));
-    heap.pop_back();
-    if (picked[i] != kFree)
-    {
-      continue;
-    }
-    label[i] = kFlat;
-    out.flat.push_back(full.points[i]);
-    ++taken;
-    picked[i] = kTaken;
-    suppressNeighbours(full, i, ring_begin, ring_end);
-  }
+  // Planes: the free candidates below the threshold, flattest first, ties to the lower index.
+  takeBestFirst(
+      begin, end, config_.max_flat_per_sector, [&](int i) { return curvature[i] < threshold && picked[i] == kFree; },
+      // Complemented as a whole: the flattest has the largest key, ties still to the lower index.
+      [&](int i) { return ~sortKey(curvature[i], static_cast<std::uint32_t>(i)); },
+      [&](int i)
+      {
+        if (picked[i] != kFree)
+        {
+          return false;
+        }
+        label[i] = kFlat;
+        out.flat.push_back(full.points[i]);
+        picked[i] = kTaken;
+        suppressNeighbours(full, i, ring_begin, ring_end);
+        return true;
+      });
 
   for (int i = begin; i < end; ++i)
   {

@@ -84,7 +84,6 @@ private:
   /// Consecutive rings whose features one thread extracts, and its buffers.
   struct RingGroup
   {
-    std::vector<std::uint64_t> candidates;  // heap keys (pickSector)
     Cloud less_flat_ring;
     FeatureSet features;  // sharp, less_sharp, flat, less_flat of the group's rings
     RegistrationStats stats;
