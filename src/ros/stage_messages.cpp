@@ -126,15 +126,27 @@ private:
   std::uint32_t left_;
 };
 
+// The whole sweep (`full`) is carried for display only: no stage computes with its points, a NaN in a
+// displayed cloud is common in ROS, and checking its points cost 0.6 ms per stage on a 121 k point sweep
+// (most of the time from registration to odometry). Only its size is checked.
+std::string checkSize(const Cloud* cloud, const char* name)
+{
+  if (cloud != nullptr && cloud->size() > kMaxStagePoints)
+  {
+    return std::string(name) + " cloud: " + std::to_string(cloud->size()) + " points";
+  }
+  return "";
+}
+
 std::string checkCloud(const Cloud* cloud, const char* name, bool by_ring)
 {
   if (cloud == nullptr)
   {
     return "";  // a stage without that cloud copes (mapping downsamples only the clouds it has)
   }
-  if (cloud->size() > kMaxStagePoints)
+  if (std::string error = checkSize(cloud, name); !error.empty())
   {
-    return std::string(name) + " cloud: " + std::to_string(cloud->size()) + " points";
+    return error;
   }
   for (std::size_t i = 0; i < cloud->size(); ++i)
   {
@@ -289,8 +301,7 @@ std::string validate(const StampedFeatureSet& msg)
   // Odometry indexes the edge and plane clouds ring by ring; the others it only reads.
   for (const auto& [cloud, name, by_ring] :
        { std::make_tuple(&f.sharp, "sharp", false), std::make_tuple(&f.less_sharp, "less_sharp", true),
-         std::make_tuple(&f.flat, "flat", false), std::make_tuple(&f.less_flat, "less_flat", true),
-         std::make_tuple(&f.full, "full", false) })
+         std::make_tuple(&f.flat, "flat", false), std::make_tuple(&f.less_flat, "less_flat", true) })
   {
     const std::string error = checkCloud(cloud, name, by_ring);
     if (!error.empty())
@@ -298,7 +309,7 @@ std::string validate(const StampedFeatureSet& msg)
       return error;
     }
   }
-  return "";
+  return checkSize(&f.full, "full");
 }
 
 std::string validate(const StampedOdometryFrame& msg)
@@ -328,7 +339,7 @@ std::string validate(const StampedOdometryFrame& msg)
       return error;
     }
   }
-  return f.full ? checkCloud(f.full.get(), "full", false) : "";
+  return checkSize(f.full.get(), "full");
 }
 
 }  // namespace ros_io

@@ -189,6 +189,12 @@ TEST(StageValidation, MalformedFeatureSetsAreRefused)
   m.features = nan_point;
   expectRefused(m, "flat cloud: point 0 not finite");
 
+  // The whole sweep is only displayed: its points are not checked (a NaN there harms nobody).
+  auto nan_in_full = std::make_shared<aloam::FeatureSet>(*good);
+  nan_in_full->full.points[0].x = std::numeric_limits<float>::quiet_NaN();
+  m.features = nan_in_full;
+  EXPECT_EQ(aloam::ros_io::validate(m), "");
+
   auto period = std::make_shared<aloam::FeatureSet>(*good);
   period->scan_period = std::numeric_limits<double>::infinity();
   m.features = period;

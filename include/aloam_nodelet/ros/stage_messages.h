@@ -66,8 +66,9 @@ bool wireLengthsFit(const aloam_nodelet::OdometryFrame* type, const std::uint8_t
 
 /// Whether a stage message (from another process, a bag, or this one) is fit for the next stage: empty if
 /// it is, else why not (unreadable or truncated clouds, NaN/Inf points, poses or stamps, a non-unit
-/// quaternion, an absurd scan period or point count, clouds not ordered by ring). Both the nodelets and
-/// test/fuzz/fuzz_stage_messages.cpp call it before handing the message to the core.
+/// quaternion, an absurd scan period or point count, clouds not ordered by ring). The whole sweep (`full`),
+/// which no stage computes with and which is only displayed, is checked by its size alone. Both the
+/// nodelets and test/fuzz/fuzz_stage_messages.cpp call it before handing the message to the core.
 std::string validate(const StampedFeatureSet& msg);
 std::string validate(const StampedOdometryFrame& msg);
 
