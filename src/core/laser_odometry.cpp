@@ -321,6 +321,17 @@ void deskewToSweepEnd(const Cloud& in, const Pose& motion, double scan_period, C
   setUnorganized(out);
 }
 
+std::shared_ptr<const Cloud> fullAtSweepEnd(const OdometryFrame& frame)
+{
+  if (!frame.full || frame.full_motion.isIdentity())
+  {
+    return frame.full;
+  }
+  auto out = std::make_shared<Cloud>();
+  deskewToSweepEnd(*frame.full, frame.full_motion, frame.scan_period, *out);
+  return out;
+}
+
 std::shared_ptr<const Cloud> LaserOdometry::toSweepEnd(const std::shared_ptr<const FeatureSet>& owner,
                                                        const Cloud& cloud, const Pose& motion) const
 {
@@ -443,7 +454,8 @@ OdometryFrame LaserOdometry::track(const std::shared_ptr<const FeatureSet>& feat
   frame.distorted = frame.distorted || (motion_unknown && config_.deskew && features->has_time);
   frame.corners = toSweepEnd(features, features->less_sharp, sweep_motion);
   frame.surfs = toSweepEnd(features, features->less_flat, sweep_motion);
-  frame.full = toSweepEnd(features, features->full, sweep_motion);
+  frame.full = std::shared_ptr<const Cloud>(features, &features->full);  // deskewed by whoever displays it
+  frame.full_motion = config_.deskew && features->has_time ? sweep_motion : Pose();
   if (motion_unknown)
   {
     motion_ = Pose();

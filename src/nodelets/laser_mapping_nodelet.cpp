@@ -223,7 +223,8 @@ void LaserMappingNodelet::publishClouds(const aloam::OdometryFrame& frame, const
   header.frame_id = outputs_.mapFrame();
   if (registered_pub_.getNumSubscribers() > 0 && frame.full)
   {
-    publishCloudIfSubscribed(registered_pub_, aloam::MappingSession::toMap(*frame.full, result.pose), header);
+    publishCloudIfSubscribed(registered_pub_, aloam::MappingSession::toMap(*aloam::fullAtSweepEnd(frame), result.pose),
+                             header);
   }
   const std::size_t mapped = session_->stats().frames_mapped;
   if (surround_pub_.getNumSubscribers() > 0 && mapped % static_cast<std::size_t>(surround_every_) == 0)

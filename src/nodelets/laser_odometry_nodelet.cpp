@@ -317,7 +317,10 @@ bool LaserOdometryNodelet::process(const aloam::ros_io::StampedFeatureSet::Const
   appendAndPublish(path_, pose, path_max_poses_, path_pub_);
   publishCloudIfSubscribed(corner_pub_, *out->frame.corners, msg->header);
   publishCloudIfSubscribed(surf_pub_, *out->frame.surfs, msg->header);
-  publishCloudIfSubscribed(full_pub_, *out->frame.full, msg->header);
+  if (full_pub_.getNumSubscribers() > 0)
+  {
+    publishCloudIfSubscribed(full_pub_, *aloam::fullAtSweepEnd(out->frame), msg->header);
+  }
   // Off the latency path: once mapping has answered for the frame, or after index_wait. (If the next
   // sweep comes first, track() indexes.)
   awaiting_mapped_ns_ = stamp.toNSec();

@@ -234,7 +234,7 @@ aloam_nodelet::OdometryFrame toWire(const StampedOdometryFrame& in)
   out.degenerate_directions = static_cast<std::uint8_t>(f.degenerate.size());
   writeCloud(f.corners, in.header, out.corners);
   writeCloud(f.surfs, in.header, out.surfs);
-  writeCloud(f.full, in.header, out.full);
+  writeCloud(fullAtSweepEnd(f), in.header, out.full);  // at the sweep end on the wire
   return out;
 }
 
@@ -263,6 +263,7 @@ void fromWire(const aloam_nodelet::OdometryFrame& in, StampedOdometryFrame& out)
   f.corners = readSharedCloud(in.corners, "corners", out.wire_error);
   f.surfs = readSharedCloud(in.surfs, "surfs", out.wire_error);
   f.full = readSharedCloud(in.full, "full", out.wire_error);
+  f.full_motion = Pose();  // the wire carries it at the sweep end
 }
 
 bool wireLengthsFit(const aloam_nodelet::FeatureClouds*, const std::uint8_t* data, std::uint32_t size)

@@ -112,7 +112,7 @@ struct DeskewFigures
 };
 
 // Runs odometry over distorted sweeps of the constant-twist drive: motion errors per sweep, and how far
-// the points handed on (frame.full, sweep-end frame) are from where they truly are at the sweep end.
+// the points handed on (fullAtSweepEnd(frame), sweep-end frame) are from where they truly are at the sweep end.
 // `keep_every` > 1: only every so many sweeps reach odometry (a throttled topic), stamped accordingly.
 DeskewFigures distortedDrive(bool deskew, int keep_every = 1, bool time_scaling = true)
 {
@@ -148,13 +148,15 @@ DeskewFigures distortedDrive(bool deskew, int keep_every = 1, bool time_scaling 
     fig.motion_translation += ts::translationError(frame.motion, truth);
     fig.motion_rotation_deg += ts::rotationErrorDeg(frame.motion, truth);
     ++compared;
-    // frame.full is parallel to f->full, whose points carry the raw coordinates and their time.
-    EXPECT_EQ(frame.full->size(), f->full.size());
-    for (std::size_t i = 0; i < f->full.size() && i < frame.full->size(); ++i)
+    // frame.full is f->full itself (raw coordinates and their time), deskewed only when asked for.
+    EXPECT_EQ(frame.full.get(), &f->full);
+    const std::shared_ptr<const Cloud> at_end = fullAtSweepEnd(frame);
+    EXPECT_EQ(at_end->size(), f->full.size());
+    for (std::size_t i = 0; i < f->full.size() && i < at_end->size(); ++i)
     {
       const Point& raw = f->full.points[i];
       const Eigen::Vector3d true_at_end = end.inverse() * pose_at(raw.time) * Eigen::Vector3d(raw.x, raw.y, raw.z);
-      const Point& handed = frame.full->points[i];
+      const Point& handed = at_end->points[i];
       fig.cloud_error += (Eigen::Vector3d(handed.x, handed.y, handed.z) - true_at_end).norm();
       ++points;
     }

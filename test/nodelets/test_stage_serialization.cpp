@@ -1,5 +1,6 @@
 // The stage messages serialize as their generated wire messages and come back equal (what a second
 // process or rosbag sees). No master needed.
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -138,6 +139,24 @@ TEST(StageSerialization, OdometryFrameRoundTrip)
   expectSameCloud(*in.frame.corners, *back.frame.corners, "corners");
   expectSameCloud(*in.frame.surfs, *back.frame.surfs, "surfs");
   expectSameCloud(*in.frame.full, *back.frame.full, "full");
+  EXPECT_TRUE(back.frame.full_motion.isIdentity());
+
+  // A whole sweep still to be deskewed goes on the wire at the sweep end, and comes back with nothing left
+  // to do: the same points fullAtSweepEnd gives in process.
+  in.frame.full_motion = aloam::Pose(Eigen::Quaterniond(Eigen::AngleAxisd(0.05, Eigen::Vector3d::UnitZ())),
+                                     Eigen::Vector3d(1.0, 0.1, 0.0));
+  const StampedOdometryFrame moved = roundTrip(in);
+  EXPECT_TRUE(moved.frame.full_motion.isIdentity());
+  const std::shared_ptr<const aloam::Cloud> at_end = aloam::fullAtSweepEnd(in.frame);
+  ASSERT_NE(at_end.get(), in.frame.full.get());
+  expectSameCloud(*at_end, *moved.frame.full, "full at the sweep end");
+  float moved_most = 0.0f;  // the points taken early in the sweep move by about the whole 1 m
+  for (std::size_t i = 0; i < at_end->size(); ++i)
+  {
+    moved_most = std::max(moved_most, std::hypot(at_end->points[i].x - in.frame.full->points[i].x,
+                                                 at_end->points[i].y - in.frame.full->points[i].y));
+  }
+  EXPECT_GT(moved_most, 0.5f);
 }
 
 // Well-formed stage messages pass validate(), as they come from registration and after the wire.

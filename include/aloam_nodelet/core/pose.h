@@ -31,6 +31,8 @@ struct Pose
   }
   Eigen::Vector3d operator*(const Eigen::Vector3d& p) const { return q * p + t; }
   bool isFinite() const { return q.coeffs().allFinite() && t.allFinite(); }
+  /// Exactly the default pose (no rotation, no translation).
+  bool isIdentity() const { return q.coeffs() == Eigen::Quaterniond::Identity().coeffs() && t.isZero(0.0); }
 
   /// The pose a fraction `s` of the way from identity to this one (slerp / linear), LOAM's
   /// constant-velocity model within a sweep.
