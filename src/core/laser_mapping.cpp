@@ -63,19 +63,25 @@ void LaserMapping::reset()
   evicted_total_ = 0;
 }
 
-bool LaserMapping::memoHolds(SearchMemo& memo, const Point& query)
+template <typename Search>
+bool LaserMapping::recall(SearchMemo* memo, const Point& query, Search&& search)
 {
-  const float dx = query.x - memo.query[0], dy = query.y - memo.query[1], dz = query.z - memo.query[2];
-  if (memo.slack > 0.0f && 4.0f * (dx * dx + dy * dy + dz * dz) < memo.slack * memo.slack)
+  if (memo == nullptr)
   {
-    ++memo.reused;
-    return true;
+    return search();
   }
-  memo.query[0] = query.x;
-  memo.query[1] = query.y;
-  memo.query[2] = query.z;
-  memo.slack = -1.0f;
-  return false;
+  const float dx = query.x - memo->query[0], dy = query.y - memo->query[1], dz = query.z - memo->query[2];
+  if (memo->slack > 0.0f && 4.0f * (dx * dx + dy * dy + dz * dz) < memo->slack * memo->slack)
+  {
+    ++memo->reused;
+    return memo->matched;  // the caller's slot still holds that match
+  }
+  memo->query[0] = query.x;
+  memo->query[1] = query.y;
+  memo->query[2] = query.z;
+  memo->slack = -1.0f;  // until the search records it
+  memo->matched = search();
+  return memo->matched;
 }
 
 bool LaserMapping::fitNeighbours(const KdTree& tree, const Cloud& cloud, const Point& query, int k,
@@ -108,62 +114,58 @@ bool LaserMapping::fitNeighbours(const KdTree& tree, const Cloud& cloud, const P
 bool LaserMapping::matchEdge(const Point& p, const Pose& pose, LineMatch& match, SearchMemo* memo) const
 {
   const Point query = transformPoint(pose, p);
-  if (memo != nullptr && memoHolds(*memo, query))
-  {
-    return memo->matched;  // `match` still holds this point's line
-  }
-  thread_local Neighbourhood fit;
-  bool matched = fitNeighbours(corner_tree_, submap_corners_, query, config_.line_neighbours,
-                               config_.line_max_sq_distance, fit, memo);
-  // A line has one dominant direction.
-  matched = matched && fit.eigen.eigenvalues()[2] > config_.line_eigen_ratio * fit.eigen.eigenvalues()[1];
-  if (matched)
-  {
-    match = LineMatch{ vec(p), fit.centroid, fit.eigen.eigenvectors().col(2) };
-  }
-  if (memo != nullptr)
-  {
-    memo->matched = matched;
-  }
-  return matched;
+  return recall(memo, query,
+                [&]
+                {
+                  thread_local Neighbourhood fit;
+                  if (!fitNeighbours(corner_tree_, submap_corners_, query, config_.line_neighbours,
+                                     config_.line_max_sq_distance, fit, memo))
+                  {
+                    return false;
+                  }
+                  // A line has one dominant direction.
+                  const Eigen::Vector3d& lambda = fit.eigen.eigenvalues();
+                  if (!(lambda[2] > config_.line_eigen_ratio * lambda[1]))
+                  {
+                    return false;
+                  }
+                  match = LineMatch{ vec(p), fit.centroid, fit.eigen.eigenvectors().col(2) };
+                  return true;
+                });
 }
 
 bool LaserMapping::matchPlane(const Point& p, const Pose& pose, PlaneMatch& match, SearchMemo* memo) const
 {
   const Point query = transformPoint(pose, p);
-  if (memo != nullptr && memoHolds(*memo, query))
-  {
-    return memo->matched;  // `match` still holds this point's plane
-  }
-  thread_local Neighbourhood fit;
-  bool matched = fitNeighbours(surf_tree_, submap_surfs_, query, config_.plane_neighbours,
-                               config_.plane_max_sq_distance, fit, memo);
-  // The neighbours must spread in two directions: points along one scan line fit every plane through
-  // that line, and their "normal" may tilt freely about it.
-  matched = matched && fit.eigen.eigenvalues()[1] > config_.plane_min_spread_ratio * fit.eigen.eigenvalues()[2];
-  if (matched)
-  {
-    // The normal is the direction of least spread; PCA works for planes through the origin too.
-    const Eigen::Vector3d n = fit.eigen.eigenvectors().col(0);
-    const double d = -n.dot(fit.centroid);
-    for (const int i : fit.index)
-    {
-      if (std::fabs(n.dot(vec(submap_surfs_.points[i])) + d) > config_.plane_max_distance)
-      {
-        matched = false;
-        break;
-      }
-    }
-    if (matched)
-    {
-      match = PlaneMatch{ vec(p), n, d };
-    }
-  }
-  if (memo != nullptr)
-  {
-    memo->matched = matched;
-  }
-  return matched;
+  return recall(memo, query,
+                [&]
+                {
+                  thread_local Neighbourhood fit;
+                  if (!fitNeighbours(surf_tree_, submap_surfs_, query, config_.plane_neighbours,
+                                     config_.plane_max_sq_distance, fit, memo))
+                  {
+                    return false;
+                  }
+                  // The neighbours must spread in two directions: points along one scan line fit every
+                  // plane through that line, and their "normal" may tilt freely about it.
+                  const Eigen::Vector3d& lambda = fit.eigen.eigenvalues();
+                  if (!(lambda[1] > config_.plane_min_spread_ratio * lambda[2]))
+                  {
+                    return false;
+                  }
+                  // The normal is the direction of least spread; PCA works for planes through the origin too.
+                  const Eigen::Vector3d n = fit.eigen.eigenvectors().col(0);
+                  const double d = -n.dot(fit.centroid);
+                  for (const int i : fit.index)
+                  {
+                    if (std::fabs(n.dot(vec(submap_surfs_.points[i])) + d) > config_.plane_max_distance)
+                    {
+                      return false;
+                    }
+                  }
+                  match = PlaneMatch{ vec(p), n, d };
+                  return true;
+                });
 }
 
 MatchSolveResult LaserMapping::solve(Pose& pose, int outer_iterations, MappingResult& result)

@@ -219,8 +219,10 @@ private:
     Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
   };
 
-  /// Whether `memo` covers a search from `query`; records it when not (the caller then searches).
-  static bool memoHolds(SearchMemo& memo, const Point& query);
+  /// search() (which may record its slack in `memo`), or, when `memo` shows its last search from nearby
+  /// still holds, that search's verdict (the caller's match slot then still holds its match).
+  template <typename Search>
+  static bool recall(SearchMemo* memo, const Point& query, Search&& search);
 
   MatchSolveResult solve(Pose& pose, int outer_iterations, MappingResult& result);
   /// The k nearest map points of `query` within the radius; with `memo`, its slack is recorded too.
