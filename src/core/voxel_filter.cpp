@@ -5,36 +5,15 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <numeric>
+#include <tuple>
+#include <utility>
 #include <vector>
 
 namespace aloam
 {
 namespace
 {
-struct VoxelEntry
-{
-  std::int32_t x, y, z;
-  std::uint32_t index;
-
-  bool sameVoxel(const VoxelEntry& o) const { return x == o.x && y == o.y && z == o.z; }
-  bool operator<(const VoxelEntry& o) const
-  {
-    if (x != o.x)
-    {
-      return x < o.x;
-    }
-    if (y != o.y)
-    {
-      return y < o.y;
-    }
-    if (z != o.z)
-    {
-      return z < o.z;
-    }
-    return index < o.index;
-  }
-};
-
 bool cellOf(float v, double inverse_leaf, std::int32_t& cell)
 {
   const double c = std::floor(static_cast<double>(v) * inverse_leaf);
@@ -58,93 +37,122 @@ int bitWidth(std::uint64_t v)
   return bits;
 }
 
-// Sorts (key, point index) pairs, given in index order, by the low `bits` bits of the key: a least
-// significant digit radix sort, 8 bits a pass. Being stable, it keeps equal keys in index order, which
-// is what sorting the pairs would give.
-void radixSort(std::vector<std::pair<std::uint64_t, std::uint32_t>>& items, int bits)
+// The filter's buffers, one set per thread, kept between calls: a sweep needs a few MB of them, and
+// fresh allocations of that size came from the kernel page by page on every call.
+struct Scratch
 {
-  std::vector<std::pair<std::uint64_t, std::uint32_t>> buffer(items.size());
-  for (int shift = 0; shift < bits; shift += 8)
+  std::vector<std::int32_t> cells;  // x, y, z cell of each finite point
+  std::vector<std::uint32_t> index, index_tmp;
+  std::vector<std::uint64_t> keys, keys_tmp;
+};
+
+// Sorts `keys` ascending by their low `bits` bits, moving `index` along; stable, so equal keys keep their
+// order. A least significant digit radix sort with 11-bit digits whose histograms are counted in one
+// pass; a digit every key shares is skipped. The result is left in `keys` and `index`.
+void radixSort(Scratch& s, std::size_t n, int bits)
+{
+  constexpr int kDigitBits = 11;
+  constexpr std::size_t kBuckets = std::size_t(1) << kDigitBits;
+  const int digits = (bits + kDigitBits - 1) / kDigitBits;
+  std::vector<std::array<std::uint32_t, kBuckets>> start(static_cast<std::size_t>(digits));
+  for (auto& counts : start)
   {
-    std::array<std::size_t, 257> start{};
-    for (const auto& item : items)
+    counts.fill(0);
+  }
+  for (std::size_t k = 0; k < n; ++k)
+  {
+    for (int d = 0; d < digits; ++d)
     {
-      ++start[((item.first >> shift) & 0xFF) + 1];
+      ++start[d][(s.keys[k] >> (d * kDigitBits)) & (kBuckets - 1)];
     }
-    for (std::size_t digit = 1; digit < start.size(); ++digit)
+  }
+  s.keys_tmp.resize(n);
+  s.index_tmp.resize(n);
+  for (int d = 0; d < digits; ++d)
+  {
+    auto& next = start[d];
+    if (std::find(next.begin(), next.end(), static_cast<std::uint32_t>(n)) != next.end())
     {
-      start[digit] += start[digit - 1];
+      continue;  // one bucket holds every key
     }
-    for (const auto& item : items)
+    std::uint32_t sum = 0;
+    for (std::uint32_t& count : next)
     {
-      buffer[start[(item.first >> shift) & 0xFF]++] = item;
+      sum += std::exchange(count, sum);
     }
-    items.swap(buffer);
+    const int shift = d * kDigitBits;
+    for (std::size_t k = 0; k < n; ++k)
+    {
+      const std::uint32_t to = next[(s.keys[k] >> shift) & (kBuckets - 1)]++;
+      s.keys_tmp[to] = s.keys[k];
+      s.index_tmp[to] = s.index[k];
+    }
+    s.keys.swap(s.keys_tmp);
+    s.index.swap(s.index_tmp);
   }
 }
 
-// The voxel cells of the finite points of `in`, sorted by cell (x, then y, then z) and, within a cell, by
-// point index. Cells are packed into one integer key, each axis in as many bits as the cloud's extent
-// needs (a lidar sweep at 0.2-0.8 m leaves needs about 30 bits), and radix-sorted: much faster than
-// comparing triples.
-std::vector<VoxelEntry> sortedCells(const Cloud& in, double inverse_leaf)
+// Orders the finite points of `in` by voxel (x, then y, then z cell) and, within a voxel, by point index:
+// `s.index` gets the order and `s.keys` a value per point that differs exactly where the voxel does.
+// Returns their number. Cells are packed into one integer key, each axis in as many bits as the cloud's
+// extent needs (a lidar sweep at 0.2-0.8 m leaves needs about 30 bits), and radix-sorted: much faster
+// than comparing triples (which a larger extent falls back to).
+std::size_t sortByVoxel(const Cloud& in, double inverse_leaf, Scratch& s)
 {
-  std::vector<VoxelEntry> entries;
-  entries.reserve(in.size());
+  s.cells.resize(3 * in.size());
+  s.index.resize(in.size());
+  std::size_t n = 0;
+  std::int32_t lo[3] = { 0, 0, 0 }, hi[3] = { 0, 0, 0 };
   for (std::size_t i = 0; i < in.size(); ++i)
   {
     const Point& p = in.points[i];
-    VoxelEntry e{ 0, 0, 0, static_cast<std::uint32_t>(i) };
-    if (isFinite(p) && cellOf(p.x, inverse_leaf, e.x) && cellOf(p.y, inverse_leaf, e.y) &&
-        cellOf(p.z, inverse_leaf, e.z))
+    std::int32_t* cell = &s.cells[3 * n];
+    if (!(isFinite(p) && cellOf(p.x, inverse_leaf, cell[0]) && cellOf(p.y, inverse_leaf, cell[1]) &&
+          cellOf(p.z, inverse_leaf, cell[2])))
     {
-      entries.push_back(e);
+      continue;
     }
-  }
-  if (entries.empty())
-  {
-    return entries;
-  }
-  std::int64_t lo[3] = { entries[0].x, entries[0].y, entries[0].z };
-  std::int64_t hi[3] = { lo[0], lo[1], lo[2] };
-  for (const VoxelEntry& e : entries)
-  {
-    const std::int64_t c[3] = { e.x, e.y, e.z };
     for (int a = 0; a < 3; ++a)
     {
-      lo[a] = std::min(lo[a], c[a]);
-      hi[a] = std::max(hi[a], c[a]);
+      lo[a] = n == 0 ? cell[a] : std::min(lo[a], cell[a]);
+      hi[a] = n == 0 ? cell[a] : std::max(hi[a], cell[a]);
     }
+    s.index[n++] = static_cast<std::uint32_t>(i);
   }
   int bits[3];
   for (int a = 0; a < 3; ++a)
   {
-    bits[a] = bitWidth(static_cast<std::uint64_t>(hi[a] - lo[a]));
+    bits[a] = bitWidth(static_cast<std::uint64_t>(std::int64_t(hi[a]) - lo[a]));
   }
+  s.keys.resize(n);
   if (bits[0] + bits[1] + bits[2] > 63)  // also keeps every shift below 64
   {
-    std::sort(entries.begin(), entries.end());
-    return entries;
+    std::vector<std::uint32_t> order(n);
+    std::iota(order.begin(), order.end(), 0u);
+    const auto cell = [&s](std::uint32_t k)
+    { return std::tie(s.cells[3 * k], s.cells[3 * k + 1], s.cells[3 * k + 2]); };
+    std::stable_sort(order.begin(), order.end(), [&](std::uint32_t a, std::uint32_t b) { return cell(a) < cell(b); });
+    std::vector<std::uint32_t> index(n);
+    std::uint64_t voxel = 0;
+    for (std::size_t k = 0; k < n; ++k)
+    {
+      voxel += k > 0 && cell(order[k]) != cell(order[k - 1]) ? 1 : 0;
+      index[k] = s.index[order[k]];
+      s.keys[k] = voxel;
+    }
+    s.index.swap(index);
+    return n;
   }
   const int shift_x = bits[1] + bits[2], shift_y = bits[2];
-  std::vector<std::pair<std::uint64_t, std::uint32_t>> keys;
-  keys.reserve(entries.size());
-  for (const VoxelEntry& e : entries)
+  for (std::size_t k = 0; k < n; ++k)
   {
-    const auto key =
-        (std::uint64_t(e.x - lo[0]) << shift_x) | (std::uint64_t(e.y - lo[1]) << shift_y) | std::uint64_t(e.z - lo[2]);
-    keys.emplace_back(key, e.index);
+    const std::int32_t* cell = &s.cells[3 * k];
+    s.keys[k] = (std::uint64_t(std::int64_t(cell[0]) - lo[0]) << shift_x) |
+                (std::uint64_t(std::int64_t(cell[1]) - lo[1]) << shift_y) |
+                std::uint64_t(std::int64_t(cell[2]) - lo[2]);
   }
-  radixSort(keys, bits[0] + bits[1] + bits[2]);
-  const auto mask = [](int n) { return (std::uint64_t(1) << n) - 1; };
-  for (std::size_t i = 0; i < keys.size(); ++i)
-  {
-    const std::uint64_t key = keys[i].first;
-    entries[i] = VoxelEntry{ static_cast<std::int32_t>(std::int64_t(key >> shift_x) + lo[0]),
-                             static_cast<std::int32_t>(std::int64_t((key >> shift_y) & mask(bits[1])) + lo[1]),
-                             static_cast<std::int32_t>(std::int64_t(key & mask(bits[2])) + lo[2]), keys[i].second };
-  }
-  return entries;
+  radixSort(s, n, bits[0] + bits[1] + bits[2]);
+  return n;
 }
 }  // namespace
 
@@ -163,32 +171,34 @@ std::size_t voxelDownsample(const Cloud& in, double leaf_size, Cloud& out)
     return out.size() - before;
   }
 
-  const std::vector<VoxelEntry> entries = sortedCells(in, 1.0 / leaf_size);
-  out.points.reserve(before + entries.size());
-  for (std::size_t begin = 0; begin < entries.size();)
+  thread_local Scratch scratch;
+  const std::size_t n = sortByVoxel(in, 1.0 / leaf_size, scratch);
+  const auto& keys = scratch.keys;
+  const auto& index = scratch.index;
+  for (std::size_t begin = 0; begin < n;)
   {
     std::size_t end = begin + 1;
-    while (end < entries.size() && entries[end].sameVoxel(entries[begin]))
+    while (end < n && keys[end] == keys[begin])
     {
       ++end;
     }
     double sx = 0.0, sy = 0.0, sz = 0.0, si = 0.0, st = 0.0;
     for (std::size_t k = begin; k < end; ++k)
     {
-      const Point& p = in.points[entries[k].index];
+      const Point& p = in.points[index[k]];
       sx += p.x;
       sy += p.y;
       sz += p.z;
       si += p.intensity;
       st += p.time;
     }
-    const double n = static_cast<double>(end - begin);
-    Point c = in.points[entries[begin].index];
-    c.x = static_cast<float>(sx / n);
-    c.y = static_cast<float>(sy / n);
-    c.z = static_cast<float>(sz / n);
-    c.intensity = static_cast<float>(si / n);
-    c.time = static_cast<float>(st / n);
+    const double count = static_cast<double>(end - begin);
+    Point c = in.points[index[begin]];
+    c.x = static_cast<float>(sx / count);
+    c.y = static_cast<float>(sy / count);
+    c.z = static_cast<float>(sz / count);
+    c.intensity = static_cast<float>(si / count);
+    c.time = static_cast<float>(st / count);
     out.points.push_back(c);
     begin = end;
   }

@@ -203,6 +203,40 @@ TEST(VoxelFilterTest, MatchesReferenceOnRandomCloud)
   }
 }
 
+// The output comes in voxel order (x, then y, then z cell), and a voxel's ring is its first point's: the
+// stages' results depend on that order (sums in the solves), so it must not change with the sorting.
+// Both sortings: the packed keys, and the triples of an extent too wide to pack.
+TEST(VoxelFilterTest, OutputInVoxelOrder)
+{
+  for (const double far : { 0.0, 1e9 })
+  {
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> u(-5.0, 5.0);
+    Cloud in;
+    for (int i = 0; i < 5000; ++i)
+    {
+      in.push_back(makePoint(u(rng), u(rng), u(rng), i % 64));
+    }
+    in.push_back(makePoint(far, far, -far, 99));
+    constexpr double kLeafHere = 0.5;
+    Cloud out;
+    voxelDownsample(in, kLeafHere, out);
+    std::map<Voxel, int> first_ring;
+    for (const Point& p : in.points)
+    {
+      first_ring.emplace(voxelOf(p, kLeafHere), p.ring);
+    }
+    ASSERT_EQ(out.size(), first_ring.size()) << "far " << far;
+    std::size_t k = 0;
+    for (const auto& [voxel, ring] : first_ring)  // std::map iterates in (x, y, z) order
+    {
+      EXPECT_EQ(voxelOf(out.points[k], kLeafHere), voxel) << "output " << k << ", far " << far;
+      EXPECT_EQ(out.points[k].ring, ring) << "output " << k << ", far " << far;
+      ++k;
+    }
+  }
+}
+
 // A cloud spanning 1e6 m with a 0.01 m leaf (1e8 voxels per axis, beyond pcl::VoxelGrid's int32 index)
 // is filtered correctly.
 TEST(VoxelFilterTest, HugeExtentWithTinyLeaf)
