@@ -91,6 +91,7 @@ void ScanRegistrationNodelet::onInit()
   reader_options_.max_points = static_cast<std::size_t>(
       boundedParam(pnh, name, "max_points", static_cast<int>(reader_options_.max_points), 1000, 20'000'000));
   executor_ = std::make_shared<aloam::Executor>(config.threads);
+  reader_options_.executor = executor_.get();  // large sweeps are read on the stage's threads
   registration_ = std::make_unique<aloam::ScanRegistration>(config, executor_);
   stamps_.setConfig(stampCheckParams(pnh, name));
 

@@ -7,6 +7,7 @@
 #include <cstring>
 #include <exception>
 #include <limits>
+#include <vector>
 
 #include <sensor_msgs/PointField.h>
 
@@ -24,6 +25,8 @@ constexpr double kMaxTimeSpanInScanPeriods = 2.0;
 constexpr double kMaxRing = std::numeric_limits<std::uint16_t>::max();
 constexpr std::uint64_t kNanosecondsPerMicrosecond = 1000;
 constexpr std::size_t kMaxScalarSize = 8;
+// Fewer points than this per thread are not worth handing to a second thread.
+constexpr int kMinPointsPerPart = 16384;
 
 /// Where a used field sits inside one point.
 struct FieldSlot
@@ -322,87 +325,170 @@ struct DecodePlan
 struct DecodeStats
 {
   std::uint64_t points_read = 0;
+  std::size_t kept = 0;  // valid points written
   std::size_t dropped_invalid = 0;
   std::size_t rings_clamped = 0;
   bool times_finite = true;
-  double time_reference = 0.0;  // raw time (seconds) of the first kept point with a finite time
-  float min_time = 0.0f;        // extremes of the stored, reference-relative finite times
+  float min_time = 0.0f;  // extremes of the stored, reference-relative finite times
   float max_time = 0.0f;
+  bool have_time = false;  // min_time / max_time hold a time
   bool capped = false;
+
+  /// Adds the stats of the next stretch of points.
+  void add(const DecodeStats& o)
+  {
+    points_read += o.points_read;
+    kept += o.kept;
+    dropped_invalid += o.dropped_invalid;
+    rings_clamped += o.rings_clamped;
+    times_finite = times_finite && o.times_finite;
+    if (o.have_time)
+    {
+      min_time = have_time ? std::min(min_time, o.min_time) : o.min_time;
+      max_time = have_time ? std::max(max_time, o.max_time) : o.max_time;
+      have_time = true;
+    }
+    capped = capped || o.capped;
+  }
 };
 
-/// Appends the valid points to `out` (reserved by the caller). Times are stored relative to
-/// `time_reference` so that absolute stamps keep their precision in a float.
 template <bool kSwap>
-DecodeStats decodePoints(const std::uint8_t* data, const DecodePlan& plan, aloam::Cloud& out)
+bool validCoordinates(const std::uint8_t* point, const DecodePlan& plan, aloam::Point& p)
+{
+  p.x = loadCoordinate<kSwap>(point + plan.x.offset, plan.x.datatype);
+  p.y = loadCoordinate<kSwap>(point + plan.y.offset, plan.y.datatype);
+  p.z = loadCoordinate<kSwap>(point + plan.z.offset, plan.z.datatype);
+  return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z) && !(p.x == 0.0f && p.y == 0.0f && p.z == 0.0f);
+}
+
+const std::uint8_t* pointAt(const std::uint8_t* data, const DecodePlan& plan, std::uint64_t k)
+{
+  return data + (k / plan.width) * plan.row_step + (k % plan.width) * plan.point_step;
+}
+
+/// The raw time (seconds) of the first valid point with a finite time: stored times are relative to it,
+/// so that absolute stamps keep their precision in a float. 0 if there is none.
+template <bool kSwap>
+double timeReference(const std::uint8_t* data, const DecodePlan& plan)
+{
+  for (std::uint64_t k = 0; plan.time.present && k < plan.complete_points; ++k)
+  {
+    const std::uint8_t* point = pointAt(data, plan, k);
+    aloam::Point p;
+    if (validCoordinates<kSwap>(point, plan, p))
+    {
+      const double seconds = loadAsDouble<kSwap>(point + plan.time.offset, plan.time.datatype) * plan.time_to_seconds;
+      if (std::isfinite(seconds))
+      {
+        return seconds;
+      }
+    }
+  }
+  return 0.0;
+}
+
+/// Decodes points [begin, end) of the data, writing the valid ones to out[0, ...) (room for end - begin
+/// points), at most `cap` of them.
+template <bool kSwap>
+DecodeStats decodePoints(const std::uint8_t* data, const DecodePlan& plan, std::uint64_t begin, std::uint64_t end,
+                         std::size_t cap, double time_reference, aloam::Point* out)
 {
   DecodeStats stats;
-  bool have_time_reference = false;
-  std::uint64_t points_left = plan.complete_points;
-  for (std::uint64_t row = 0; points_left > 0 && !stats.capped; ++row)
+  for (std::uint64_t k = begin; k < end; ++k)
   {
-    const std::uint64_t in_row = std::min(plan.width, points_left);
-    const std::uint8_t* point = data + row * plan.row_step;  // a complete or partial row: in bounds
-    for (std::uint64_t column = 0; column < in_row; ++column, point += plan.point_step)
+    if (stats.kept >= cap)
     {
-      if (out.points.size() >= plan.cap)
-      {
-        stats.capped = true;
-        break;
-      }
-      ++stats.points_read;
-      aloam::Point p;
-      p.x = loadCoordinate<kSwap>(point + plan.x.offset, plan.x.datatype);
-      p.y = loadCoordinate<kSwap>(point + plan.y.offset, plan.y.datatype);
-      p.z = loadCoordinate<kSwap>(point + plan.z.offset, plan.z.datatype);
-      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z) ||
-          (p.x == 0.0f && p.y == 0.0f && p.z == 0.0f))
-      {
-        ++stats.dropped_invalid;
-        continue;
-      }
-      p.data[3] = 1.0f;
-      p.intensity = 0.0f;
-      if (plan.intensity.present)
-      {
-        p.intensity = static_cast<float>(loadAsDouble<kSwap>(point + plan.intensity.offset, plan.intensity.datatype));
-      }
-      p.ring = 0;
-      if (plan.ring.present)
-      {
-        const double ring = loadAsDouble<kSwap>(point + plan.ring.offset, plan.ring.datatype);
-        if (ring < 0.0 || ring > kMaxRing)
-        {
-          ++stats.rings_clamped;
-        }
-        p.ring = static_cast<std::uint16_t>(std::clamp(ring, 0.0, kMaxRing));
-      }
-      p.time = 0.0f;
-      if (plan.time.present)
-      {
-        const double seconds = loadAsDouble<kSwap>(point + plan.time.offset, plan.time.datatype) * plan.time_to_seconds;
-        if (!std::isfinite(seconds))
-        {
-          stats.times_finite = false;
-        }
-        else if (!have_time_reference)
-        {
-          stats.time_reference = seconds;
-          have_time_reference = true;
-        }
-        p.time = static_cast<float>(seconds - stats.time_reference);
-        stats.min_time = std::min(stats.min_time, p.time);  // NaN compares false: ignored
-        stats.max_time = std::max(stats.max_time, p.time);
-      }
-      out.points.push_back(p);
+      stats.capped = true;
+      break;
     }
-    points_left -= in_row;
+    ++stats.points_read;
+    const std::uint8_t* point = pointAt(data, plan, k);
+    aloam::Point& p = out[stats.kept];
+    if (!validCoordinates<kSwap>(point, plan, p))
+    {
+      ++stats.dropped_invalid;
+      continue;
+    }
+    p.data[3] = 1.0f;
+    p.intensity = 0.0f;
+    if (plan.intensity.present)
+    {
+      p.intensity = static_cast<float>(loadAsDouble<kSwap>(point + plan.intensity.offset, plan.intensity.datatype));
+    }
+    p.ring = 0;
+    if (plan.ring.present)
+    {
+      const double ring = loadAsDouble<kSwap>(point + plan.ring.offset, plan.ring.datatype);
+      if (ring < 0.0 || ring > kMaxRing)
+      {
+        ++stats.rings_clamped;
+      }
+      p.ring = static_cast<std::uint16_t>(std::clamp(ring, 0.0, kMaxRing));
+    }
+    p.time = 0.0f;
+    if (plan.time.present)
+    {
+      const double seconds = loadAsDouble<kSwap>(point + plan.time.offset, plan.time.datatype) * plan.time_to_seconds;
+      if (!std::isfinite(seconds))
+      {
+        stats.times_finite = false;
+      }
+      p.time = static_cast<float>(seconds - time_reference);
+      if (!std::isnan(p.time))  // an infinite time makes the span infinite: times are then dropped
+      {
+        stats.min_time = stats.have_time ? std::min(stats.min_time, p.time) : p.time;
+        stats.max_time = stats.have_time ? std::max(stats.max_time, p.time) : p.time;
+        stats.have_time = true;
+      }
+    }
+    ++stats.kept;
   }
   return stats;
 }
 
+/// Decodes every complete point into `out` (resized to the points kept), in contiguous stretches, one per
+/// thread of `executor` (when given and the cloud is large), then joined in order: the result does not
+/// depend on the threads. With a cap the data may exceed, in one stretch (the cap keeps the first valid
+/// points). A KITTI sweep of 121 k points: 1.1 ms in one stretch, 0.63 ms in two.
+template <bool kSwap>
+DecodeStats decodeAll(const std::uint8_t* data, const DecodePlan& plan, double time_reference,
+                      aloam::Executor* executor, aloam::Cloud& out)
+{
+  const std::uint64_t n = plan.complete_points;
+  const int parts =
+      executor != nullptr && plan.cap >= n && n <= static_cast<std::uint64_t>(std::numeric_limits<int>::max())
+          ? aloam::Executor::effectiveParts(static_cast<int>(n), executor->threads(), kMinPointsPerPart)
+          : 1;
+  out.points.resize(static_cast<std::size_t>(std::min(n, plan.cap)));
+  std::vector<DecodeStats> part_stats(static_cast<std::size_t>(parts));
+  const auto bound = [&](int part) { return n * static_cast<std::uint64_t>(part) / static_cast<std::uint64_t>(parts); };
+  aloam::parallelChunks(parts > 1 ? executor : nullptr, parts, parts, 1,
+                        [&](int first, int last, int)
+                        {
+                          for (int part = first; part < last; ++part)
+                          {
+                            part_stats[part] = decodePoints<kSwap>(data, plan, bound(part), bound(part + 1), plan.cap,
+                                                                   time_reference, out.points.data() + bound(part));
+                          }
+                        });
+  DecodeStats stats;
+  for (int part = 0; part < parts; ++part)
+  {
+    // Close the gap the dropped points of the stretches before left.
+    if (stats.kept != bound(part) && part_stats[part].kept > 0)
+    {
+      std::memmove(out.points.data() + stats.kept, out.points.data() + bound(part),
+                   part_stats[part].kept * sizeof(aloam::Point));
+    }
+    stats.add(part_stats[part]);
+  }
+  out.points.resize(stats.kept);
+  return stats;
+}
+
 /// Shifts the stored (reference-relative) times so the earliest is 0, or zeroes them when unusable.
-void finishTimes(const DecodeStats& stats, const ReaderOptions& options, aloam::Cloud& out, ReadReport& report)
+void finishTimes(const DecodeStats& stats, double time_reference, const ReaderOptions& options, aloam::Cloud& out,
+                 ReadReport& report)
 {
   if (out.points.empty())
   {
@@ -454,7 +540,7 @@ void finishTimes(const DecodeStats& stats, const ReaderOptions& options, aloam::
     }
   }
   report.has_time = true;
-  report.time_origin = stats.time_reference + static_cast<double>(stats.min_time);
+  report.time_origin = time_reference + static_cast<double>(stats.min_time);
 }
 
 ReadReport readUnchecked(const sensor_msgs::PointCloud2& msg, const ReaderOptions& options, aloam::Cloud& out)
@@ -543,11 +629,12 @@ ReadReport readUnchecked(const sensor_msgs::PointCloud2& msg, const ReaderOption
   plan.row_step = layout.row_step;
   plan.complete_points = layout.complete_points;
   plan.cap = options.max_points == 0 ? layout.complete_points : options.max_points;
-  out.points.reserve(static_cast<std::size_t>(std::min(plan.complete_points, plan.cap)));
 
   const bool swap_bytes = static_cast<bool>(msg.is_bigendian) != hostIsBigEndian();
-  const DecodeStats stats =
-      swap_bytes ? decodePoints<true>(msg.data.data(), plan, out) : decodePoints<false>(msg.data.data(), plan, out);
+  const std::uint8_t* data = msg.data.data();
+  const double time_reference = swap_bytes ? timeReference<true>(data, plan) : timeReference<false>(data, plan);
+  const DecodeStats stats = swap_bytes ? decodeAll<true>(data, plan, time_reference, options.executor, out)
+                                       : decodeAll<false>(data, plan, time_reference, options.executor, out);
   report.dropped_invalid = stats.dropped_invalid;
 
   if (stats.capped)
@@ -562,7 +649,7 @@ ReadReport readUnchecked(const sensor_msgs::PointCloud2& msg, const ReaderOption
   }
   if (time_slot.present)
   {
-    finishTimes(stats, options, out, report);
+    finishTimes(stats, time_reference, options, out, report);
   }
 
   out.width = static_cast<std::uint32_t>(out.points.size());
@@ -602,13 +689,19 @@ std::size_t pointFieldSize(std::uint8_t datatype)
 
 ReadReport readPointCloud2(const sensor_msgs::PointCloud2& msg, const ReaderOptions& options, aloam::Cloud& out)
 {
-  out.points.clear();
+  // The points stay until the decode overwrites them: resizing zero-fills only what the cloud grows by
+  // (a reused cloud, sweep after sweep, hardly at all).
   out.width = 0;
   out.height = 1;
   out.is_dense = true;
   try
   {
-    return readUnchecked(msg, options, out);
+    ReadReport report = readUnchecked(msg, options, out);
+    if (!report.ok)
+    {
+      out.points.clear();
+    }
+    return report;
   }
   catch (const std::exception& e)
   {

@@ -1009,6 +1009,73 @@ TEST(PointCloud2Reader, EmptyFrameIdIsOnlyAWarning)
   EXPECT_EQ(out.size(), 2u);
 }
 
+// Large clouds are decoded in stretches over the reading stage's threads: the cloud and the report must
+// not depend on them. An organized cloud with row padding, ring and time fields, holes everywhere and a
+// first stretch that holds no valid point (the time reference lies in a later one), little- and
+// big-endian, against the decode on the caller; and a cloud read into one that held more points before.
+TEST(PointCloud2Reader, ThreadsDoNotChangeTheCloud)
+{
+  constexpr std::uint32_t kWidth = 1200;
+  constexpr std::uint32_t kHeight = 64;
+  for (const bool big_endian : { false, true })
+  {
+    CloudSpec spec = xyziSpec(kWidth, kHeight);
+    spec.fields.push_back({ "ring", PointField::UINT16, 16 });
+    spec.fields.push_back({ "time", PointField::FLOAT64, 18 });
+    spec.point_step = 26;
+    spec.row_padding = 5;
+    spec.big_endian = big_endian;
+    std::vector<PointValues> points;
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> coordinate(-40.0, 40.0);
+    for (std::uint32_t r = 0; r < kHeight; ++r)
+    {
+      for (std::uint32_t c = 0; c < kWidth; ++c)
+      {
+        const std::size_t i = points.size();
+        const bool hole = i < 30000 || i % 7 == 3 || (r == 40 && c > 600);
+        points.push_back({ hole ? kNaN : coordinate(rng), coordinate(rng), coordinate(rng),
+                           static_cast<double>(i % 256), static_cast<double>(r), 1.7e9 + 1e-6 * c + 2e-7 * r });
+      }
+    }
+    const auto msg = makeCloud(spec, points);
+    aloam::Cloud serial;
+    const ReadReport expected = readPointCloud2(msg, ReaderOptions(), serial);
+    ASSERT_TRUE(expected.ok) << expected.error;
+    ASSERT_TRUE(expected.has_time);
+    ASSERT_GT(expected.dropped_invalid, 30000u);
+    for (const int threads : { 2, 3, 4 })
+    {
+      aloam::Executor executor(threads);
+      ReaderOptions options;
+      options.executor = &executor;
+      aloam::Cloud parallel = serial;
+      parallel.points.resize(serial.size() + 1000);  // stale points beyond what the read keeps
+      const ReadReport report = readPointCloud2(msg, options, parallel);
+      ASSERT_TRUE(report.ok) << report.error;
+      EXPECT_EQ(report.points_out, expected.points_out) << threads;
+      EXPECT_EQ(report.dropped_invalid, expected.dropped_invalid) << threads;
+      EXPECT_EQ(report.time_origin, expected.time_origin) << threads;
+      EXPECT_EQ(joinWarnings(report), joinWarnings(expected)) << threads;
+      ASSERT_EQ(parallel.size(), serial.size()) << threads;
+      EXPECT_EQ(parallel.width, serial.width);
+      for (std::size_t i = 0; i < serial.size(); ++i)
+      {
+        const aloam::Point &a = serial[i], &b = parallel[i];
+        ASSERT_TRUE(a.x == b.x && a.y == b.y && a.z == b.z && a.intensity == b.intensity && a.ring == b.ring &&
+                    a.time == b.time)
+            << "point " << i << ", " << threads << " threads";
+      }
+    }
+  }
+  // An unusable message leaves nothing of the cloud read before.
+  aloam::Cloud reused = aloam::Cloud();
+  reused.points.resize(10);
+  CloudSpec empty_spec = xyziSpec(0);
+  EXPECT_FALSE(readPointCloud2(makeCloud(empty_spec, {}), ReaderOptions(), reused).ok);
+  EXPECT_TRUE(reused.empty());
+}
+
 TEST(PointCloud2Reader, RandomMalformedMessagesNeverCrash)
 {
   const std::vector<std::string> names = { "x", "y", "z", "intensity", "ring", "time", "t", "timestamp" };

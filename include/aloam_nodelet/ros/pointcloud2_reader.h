@@ -7,6 +7,7 @@
 
 #include <sensor_msgs/PointCloud2.h>
 
+#include "aloam_nodelet/core/executor.h"
 #include "aloam_nodelet/core/point_types.h"
 
 namespace aloam
@@ -19,6 +20,8 @@ struct ReaderOptions
   std::size_t max_points = 2'000'000;
   /// Nominal sweep period in seconds. Per-point times spanning more than twice this are rejected.
   double scan_period = 0.1;
+  /// Large clouds are decoded in parallel on these threads (the reading stage's); null: on the caller.
+  Executor* executor = nullptr;
 };
 
 struct ReadReport
