@@ -394,15 +394,22 @@ DecodeStats decodePoints(const std::uint8_t* data, const DecodePlan& plan, std::
                          std::size_t cap, double time_reference, aloam::Point* out)
 {
   DecodeStats stats;
-  for (std::uint64_t k = begin; k < end; ++k)
+  std::uint64_t column = begin % plan.width;
+  const std::uint8_t* point = pointAt(data, plan, begin);
+  for (std::uint64_t k = begin; k < end; ++k, point += plan.point_step)
   {
+    if (column == plan.width)  // the next row (rows may be padded)
+    {
+      column = 0;
+      point = pointAt(data, plan, k);
+    }
+    ++column;
     if (stats.kept >= cap)
     {
       stats.capped = true;
       break;
     }
     ++stats.points_read;
-    const std::uint8_t* point = pointAt(data, plan, k);
     aloam::Point& p = out[stats.kept];
     if (!validCoordinates<kSwap>(point, plan, p))
     {
