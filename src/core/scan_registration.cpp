@@ -374,7 +374,7 @@ void ScanRegistration::suppressNeighbours(const Cloud& full, int index, int ring
   }
 }
 
-void ScanRegistration::pickSector(const Cloud& full, int begin, int end, RingGroup& part)
+void ScanRegistration::pickSector(const Cloud& full, int begin, int end, RingGroup& group)
 {
   // [begin, end) lies inside one ring whose bounds are [ring_begin, ring_end).
   const int w = config_.curvature_half_window;
@@ -383,7 +383,7 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, RingGro
   const auto& curvature = scratch_.curvature;
   auto& picked = scratch_.picked;
   auto& label = scratch_.label;
-  FeatureSet& out = part.features;
+  FeatureSet& out = group.features;
   const auto threshold = static_cast<float>(config_.curvature_threshold);
 
   // Edges: the free candidates above the threshold, sharpest first, ties to the lower index.
@@ -400,9 +400,9 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, RingGro
         {
           return false;
         }
-        ++taken;
-        label[i] = taken <= config_.max_sharp_per_sector ? kSharp : kLessSharp;
-        if (label[i] == kSharp)
+        const bool sharp = ++taken <= config_.max_sharp_per_sector;
+        label[i] = sharp ? kSharp : kLessSharp;
+        if (sharp)
         {
           out.sharp.push_back(full.points[i]);
         }
@@ -434,7 +434,7 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, RingGro
   {
     if (label[i] <= kPlain)
     {
-      part.less_flat_ring.push_back(full.points[i]);
+      group.less_flat_ring.push_back(full.points[i]);
     }
   }
 }
