@@ -6,14 +6,16 @@ dependency closure, or from the packages every Debian system has (Essential: yes
 What it checks, each against the closure:
 - every Python module imported under test/ and scripts/ (resolved by Debian's /usr/bin/python3, without any
   workspace on the path), except this repository's own modules;
-- every command the shell scripts, .ci/run, the Python test nodes (subprocess calls) and the README's shell
-  blocks and inline commands run, and every `rosrun PKG EXE` / `roslaunch PKG FILE` they name;
+- every command the shell scripts, .ci/run, the Python test nodes (subprocess calls) and the shell blocks and
+  inline commands of the README and docs/ run, and every `rosrun PKG EXE` / `roslaunch PKG FILE` they name;
 - every ROS package a launch or rostest file starts a node of or includes a file from;
 - every find_package() and catkin component in the CMakeLists.txt files.
 
 Usage: check_deps.py REPO_ROOT PACKAGE...   (exit 0: all resolved; 1: what is missing, one line each)
        check_deps.py --provided PKG PACKAGE...  (exit 0 if PKG is in the dependency closure of PACKAGE...)
-It reads dpkg's database only; it installs nothing and asks no package server.
+It reads the project's own files only (those git lists, or outside git all but build trees and caches, with
+exact suffixes) and dpkg's database; it installs nothing and asks no package server. A file that is not UTF-8
+is reported as a problem, and a crash of the check is a failure.
 """
 import ast
 import glob
@@ -23,6 +25,7 @@ import re
 import shutil
 import subprocess
 import sys
+import traceback
 from collections import defaultdict
 
 # Shell words that are not commands of a package: builtins, keywords and this project's shell functions
@@ -34,6 +37,9 @@ enable eval exec exit export false fc fg getopts hash help history jobs kill let
 printf pushd pwd read readarray readonly return set shift shopt suspend test times trap true type typeset
 ulimit umask unalias unset wait
 """.split())
+
+# The C and C++ sources whose includes are checked (exact suffixes: a glob like *.[ch]* also takes *.cpython-*.pyc).
+CXX_SUFFIXES = (".c", ".cc", ".cpp", ".cxx", ".h", ".hh", ".hpp", ".hxx")
 
 # rosdep keys of what is not a ROS package of the same name.
 PYTHON_KEYS = {"numpy": "python3-numpy", "matplotlib": "python3-matplotlib", "rospkg": "python3-rospkg",
@@ -136,6 +142,49 @@ class Check:
     def problem(self, text):
         self.problems.append(text)
 
+    # ---- the project's files ------------------------------------------------------------------------
+    def project_files(self):
+        """Repository-relative paths of the project's files: what git tracks plus new files it does not
+        ignore, or, outside a git work tree, every file but the build trees and caches. Build outputs,
+        bytecode and editor files are never read."""
+        if not hasattr(self, "_files"):
+            listed = subprocess.run(["git", "-C", self.root, "ls-files", "-z", "--cached", "--others",
+                                     "--exclude-standard"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
+            if listed.returncode == 0:
+                files = [f for f in listed.stdout.decode("utf-8", "surrogateescape").split("\0") if f]
+            else:
+                files = []
+                skip = {".git", ".catkin_ws", "build", "out", "__pycache__", ".vscode", ".idea"}
+                for top, dirs, names in os.walk(self.root):
+                    dirs[:] = [d for d in dirs if d not in skip]
+                    files += [os.path.relpath(os.path.join(top, n), self.root) for n in names]
+            self._files = sorted(set(f for f in files if os.path.isfile(os.path.join(self.root, f))))
+        return self._files
+
+    def files(self, folders, suffixes, recursive=True):
+        """Absolute paths of the project's files under `folders` (repository-relative, "" for the root)
+        whose names end in one of `suffixes` exactly ("CMakeLists.txt" counts as a suffix too)."""
+        out = []
+        for rel in self.project_files():
+            folder = os.path.dirname(rel)
+            inside = any(folder == f or (recursive and f and folder.startswith(f + "/")) or
+                         (recursive and not f) for f in folders)
+            if inside and rel.endswith(tuple(suffixes)):
+                out.append(os.path.join(self.root, rel))
+        return out
+
+    def read(self, path):
+        """A project file's text; one that is not UTF-8 is a problem to report, not a crash."""
+        try:
+            with open(path, encoding="utf-8") as f:
+                return f.read()
+        except UnicodeDecodeError as e:
+            self.problem("%s: not UTF-8 text (byte 0x%02x at offset %d); the check reads sources as UTF-8"
+                         % (os.path.relpath(path, self.root), e.object[e.start], e.start))
+        except OSError as e:
+            self.problem("%s: cannot be read (%s)" % (os.path.relpath(path, self.root), e.strerror))
+        return ""
+
     def expect_file(self, what, where, path):
         """`path` must be a file owned by an allowed package."""
         self.checked[what.split()[0]] += 1
@@ -148,12 +197,16 @@ class Check:
 
     # ---- Python modules ------------------------------------------------------------------------------
     def python_modules(self):
-        files = sorted(glob.glob(os.path.join(self.root, "test", "**", "*.py"), recursive=True) +
-                       glob.glob(os.path.join(self.root, "scripts", "*.py")))
+        files = self.python_files()
         local = {os.path.splitext(os.path.basename(f))[0] for f in files} | {"aloam_nodelet"}
         modules = defaultdict(set)
         for path in files:
-            tree = ast.parse(open(path, encoding="utf-8").read(), path)
+            try:
+                tree = ast.parse(self.read(path), path)
+            except SyntaxError as e:
+                self.problem("%s: not valid Python (%s, line %s)" % (os.path.relpath(path, self.root), e.msg,
+                                                                      e.lineno))
+                continue
             for node in ast.walk(tree):
                 if isinstance(node, ast.Import):
                     names = [a.name for a in node.names]
@@ -191,11 +244,13 @@ class Check:
                     self.used[key].add(where)
 
     # ---- commands ------------------------------------------------------------------------------------
+    def python_files(self):
+        return sorted(self.files(["test"], [".py"]) + self.files(["scripts"], [".py"], recursive=False))
+
     def shell_files(self):
-        files = glob.glob(os.path.join(self.root, "scripts", "*.sh"))
-        files += glob.glob(os.path.join(self.root, "test", "**", "*.sh"), recursive=True)
-        files += [os.path.join(self.root, ".ci", "run")]
-        return sorted(f for f in files if os.path.isfile(f))
+        files = self.files(["scripts"], [".sh"], recursive=False) + self.files(["test"], [".sh"])
+        files += self.files([".ci"], [".ci/run"], recursive=False)
+        return sorted(set(files))
 
     @staticmethod
     def shell_functions(texts):
@@ -314,15 +369,14 @@ class Check:
         self.used[package].add(where)
 
     def commands(self):
-        shell = {f: open(f, encoding="utf-8").read() for f in self.shell_files()}
+        shell = {f: self.read(f) for f in self.shell_files()}
         functions = self.shell_functions(shell.values())
         for path, text in shell.items():
             for words in self.shell_commands(text):
                 self.check_command(words, os.path.relpath(path, self.root), functions)
         # Python test nodes: subprocess calls with a literal program name.
-        for path in glob.glob(os.path.join(self.root, "test", "**", "*.py"), recursive=True) + \
-                glob.glob(os.path.join(self.root, "scripts", "*.py")):
-            text = open(path, encoding="utf-8").read()
+        for path in self.python_files():
+            text = self.read(path)
             for m in re.finditer(r"(?:subprocess\.\w+|Popen)\(\s*\[([^\]]*)", text):
                 literal = re.findall(r"\"([^\"]*)\"|'([^']*)'", m.group(1))
                 words = [a or b for a, b in literal]
@@ -330,22 +384,22 @@ class Check:
                 if words and head.startswith(("\"", "'")):
                     self.check_command(words, os.path.relpath(path, self.root), functions)
         # README: shell code blocks, and inline code that starts with a ROS or catkin command.
-        readme = open(os.path.join(self.root, "README.md"), encoding="utf-8").read()
-        for block in re.findall(r"```(?:bash|sh|shell)\n(.*?)```", readme, re.S):
-            for words in self.shell_commands(block):
-                self.check_command(words, "README.md", functions)
-        for span in re.findall(r"`([^`\n]+)`", readme):
-            words = span.split()
-            if len(words) > 1 and re.match(r"^(ros\w+|catkin_\w+|dynparam|rviz|pcl_\w+|rqt\w*)$", words[0]):
-                self.check_command(words, "README.md", functions)
+        # The README and docs/: shell code blocks, and inline code that starts with a ROS or catkin command.
+        for path in self.files([""], ["README.md"], recursive=False) + self.files(["docs"], [".md"]):
+            text, where = self.read(path), os.path.relpath(path, self.root)
+            for block in re.findall(r"```(?:bash|sh|shell)\n(.*?)```", text, re.S):
+                for words in self.shell_commands(block):
+                    self.check_command(words, where, functions)
+            for span in re.findall(r"`([^`\n]+)`", text):
+                words = span.split()
+                if len(words) > 1 and re.match(r"^(ros\w+|catkin_\w+|dynparam|rviz|pcl_\w+|rqt\w*)$", words[0]):
+                    self.check_command(words, where, functions)
 
     # ---- launch and rostest files --------------------------------------------------------------------
     def launch_files(self):
-        files = glob.glob(os.path.join(self.root, "launch", "*.launch"))
-        files += glob.glob(os.path.join(self.root, "test", "**", "*.test"), recursive=True)
-        files += glob.glob(os.path.join(self.root, "test", "**", "*.launch"), recursive=True)
+        files = self.files(["launch"], [".launch"], recursive=False) + self.files(["test"], [".test", ".launch"])
         for path in sorted(files):
-            text = open(path, encoding="utf-8").read()
+            text = self.read(path)
             where = os.path.relpath(path, self.root)
             for pkg in set(re.findall(r"<(?:node|test)\b[^>]*\bpkg=\"([^\"$]+)\"", text, re.S)) | \
                     set(re.findall(r"\$\(find ([\w]+)\)", text)):
@@ -365,10 +419,9 @@ class Check:
 
     # ---- CMake ---------------------------------------------------------------------------------------
     def cmake(self):
-        files = [os.path.join(self.root, "CMakeLists.txt")]
-        files += glob.glob(os.path.join(self.root, "test", "**", "CMakeLists.txt"), recursive=True)
+        files = self.files([""], ["CMakeLists.txt"], recursive=False) + self.files(["test"], ["/CMakeLists.txt"])
         for path in files:
-            text = re.sub(r"#.*", "", open(path, encoding="utf-8").read())
+            text = re.sub(r"#.*", "", self.read(path))
             where = os.path.relpath(path, self.root)
             for args in re.findall(r"find_package\s*\(([^)]*)\)", text, re.I):
                 words = args.split()
@@ -409,12 +462,10 @@ class Check:
             if element.tag.endswith("depend"):
                 declared[element.text.strip()].add(element.tag)
         # C++ includes: they must be declared for building.
-        sources = glob.glob(os.path.join(self.root, "src", "**", "*.[ch]*"), recursive=True)
-        sources += glob.glob(os.path.join(self.root, "include", "**", "*.h"), recursive=True)
-        sources += glob.glob(os.path.join(self.root, "test", "**", "*.[ch]*"), recursive=True)
+        sources = self.files(["src", "include", "test"], CXX_SUFFIXES)
         build_keys = defaultdict(set)
         for path in sources:
-            for top in re.findall(r"^#include\s*<(\w+)/", open(path, encoding="utf-8").read(), re.M):
+            for top in re.findall(r"^#include\s*<(\w+)/", self.read(path), re.M):
                 key = INCLUDE_KEYS.get(top, top if is_ros_package(top) else None)
                 if key and key != "aloam_nodelet":
                     build_keys[key].add(os.path.relpath(path, self.root))
@@ -423,7 +474,7 @@ class Check:
             if not declared[key] & {"depend", "build_depend", "test_depend"}:
                 self.problem("package.xml: %s is included by %s but not a build dependency"
                              % (key, ", ".join(sorted(where)[:2])))
-        if re.search(r"add_(message|service)_files", open(os.path.join(self.root, "CMakeLists.txt")).read()):
+        if re.search(r"add_(message|service)_files", self.read(os.path.join(self.root, "CMakeLists.txt"))):
             self.used["message_runtime"].add("CMakeLists.txt")
         self.used["catkin"].add("CMakeLists.txt")
         for key, where in sorted(self.used.items()):
@@ -461,4 +512,9 @@ if __name__ == "__main__":
     if sys.argv[1] == "--provided":
         debian = Debian()
         sys.exit(0 if sys.argv[2] in debian.closure(sys.argv[3:]) | debian.closure(debian.base) else 1)
-    sys.exit(Check(os.path.abspath(sys.argv[1]), sys.argv[2:]).run())
+    try:
+        sys.exit(Check(os.path.abspath(sys.argv[1]), sys.argv[2:]).run())
+    except Exception:  # a crash is a failed check, said as such
+        traceback.print_exc()
+        print("dependency self-check FAILED: it crashed (traceback above), so nothing was proven")
+        sys.exit(1)

@@ -43,6 +43,7 @@ run_check() {  # run_check SCRIPT ARGS... (SCRIPT relative to test/): exit 0 pas
 }
 run_check tools/check_format.sh
 run_check tools/check_deps_catch.sh
+run_check tools/check_deps_files.sh
 run_check tools/check_install_space.sh "$checks_out/install_space"
 run_check tools/check_offline_bag.sh "$bin" "$checks_out/offline_bag"
 run_check tools/check_offline_kitti.sh "$bin" "$ALOAM_DATA/kitti00_101" "$checks_out/offline_kitti"
