@@ -157,6 +157,12 @@ bool hasField(const pcl::PCLPointCloud2& blob, const std::string& name, std::uin
   return false;
 }
 
+template <typename P>
+bool isFinite(const P& p)
+{
+  return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
+}
+
 void append(Cloud& cloud, float x, float y, float z)
 {
   Point p{};
@@ -301,17 +307,20 @@ MapData readMapFile(const std::string& pcd)
   std::uint8_t label_type = 0;
   const bool labelled = hasField(blob, "label", &label_type) && label_type == pcl::PCLPointField::UINT32;
   std::size_t unlabelled = 0;
+  std::size_t non_finite = 0;  // other tools' clouds may hold NaN points (holes of an organized cloud)
   if (labelled)
   {
     pcl::PointCloud<pcl::PointXYZL> cloud;
     pcl::fromPCLPointCloud2(blob, cloud);
     for (const auto& p : cloud.points)
     {
-      if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z))
+      if (!isFinite(p))
       {
-        unlabelled += p.label != kMapEdgeLabel && p.label != kMapPlaneLabel;
-        append(p.label == kMapEdgeLabel ? data.corners : data.surfs, p.x, p.y, p.z);
+        ++non_finite;
+        continue;
       }
+      unlabelled += p.label != kMapEdgeLabel && p.label != kMapPlaneLabel;
+      append(p.label == kMapEdgeLabel ? data.corners : data.surfs, p.x, p.y, p.z);
     }
     if (unlabelled > 0)
     {
@@ -326,14 +335,22 @@ MapData readMapFile(const std::string& pcd)
     pcl::fromPCLPointCloud2(blob, cloud);
     for (const auto& p : cloud.points)
     {
-      if (std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z))
+      if (!isFinite(p))
       {
-        append(data.surfs, p.x, p.y, p.z);
+        ++non_finite;
+        continue;
       }
+      append(data.surfs, p.x, p.y, p.z);
     }
     data.warnings.push_back("no edge/plane label in " + pcd +
                             " (an older build's map or another tool's cloud): every point taken as a plane point");
   }
+  if (non_finite > 0)
+  {
+    data.warnings.push_back(std::to_string(non_finite) + " points of " + pcd +
+                            " with a NaN or infinite coordinate dropped");
+  }
+  data.dropped_non_finite = non_finite;
   setUnorganized(data.corners);
   setUnorganized(data.surfs);
   if (data.corners.empty() && data.surfs.empty())
@@ -344,7 +361,9 @@ MapData readMapFile(const std::string& pcd)
   const std::string sidecar = mapSidecarPath(pcd);
   if (!std::ifstream(sidecar))
   {
-    data.warnings.push_back("no sidecar " + sidecar + ": frame and mapping parameters are the defaults");
+    data.warnings.push_back("no sidecar " + sidecar +
+                            ": frame and mapping parameters are the defaults, and a global search tries every "
+                            "part of the map instead of the mapped trajectory (slower)");
     return data;
   }
   const Sidecar s = readSidecar(sidecar);

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <memory>
 #include <string>
@@ -134,6 +135,76 @@ TEST(MapFileTest, OlderBuildsMapAndPlainXyzAreReadAsPlanePoints)
   const MapData b = readMapFile((dir / "xyz.pcd").string());
   EXPECT_TRUE(b.corners.empty());
   EXPECT_EQ(b.surfs.size(), 25u);
+  fs::remove_all(dir);
+}
+
+TEST(MapFileTest, NonFinitePointsAreDroppedCountedAndSaid)
+{
+  // Another tool's copy of a saved map: the same points with 25 NaN or infinite ones among them (holes of an
+  // organized cloud), the sidecar kept. The map read is the one without them, and the reader says how many.
+  const fs::path dir = scratch("non_finite");
+  const Cloud corners = someCloud(30, 0.0), surfs = someCloud(70, 100.0);
+  MapMetadata m;
+  m.trajectory = { Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(20, 0, 0) };
+  const std::string clean = (dir / "clean.pcd").string(), holed = (dir / "holed.pcd").string();
+  writeMapFile(clean, corners, surfs, m);
+  writeMapFile(holed, corners, surfs, m);
+  pcl::PointCloud<pcl::PointXYZL> cloud;
+  ASSERT_EQ(pcl::io::loadPCDFile(holed, cloud), 0);
+  const float nan = std::numeric_limits<float>::quiet_NaN(), inf = std::numeric_limits<float>::infinity();
+  for (int i = 0; i < 25; ++i)
+  {
+    pcl::PointXYZL bad;
+    bad.x = i % 3 == 0 ? nan : 1.0f;
+    bad.y = i % 3 == 1 ? -inf : 2.0f;
+    bad.z = i % 3 == 2 ? inf : (i % 2 ? nan : 3.0f);
+    bad.label = i % 2 ? kMapEdgeLabel : kMapPlaneLabel;
+    cloud.points.insert(cloud.points.begin() + 4 * i, bad);
+  }
+  cloud.width = cloud.size();
+  cloud.height = 1;
+  cloud.is_dense = false;
+  ASSERT_EQ(pcl::io::savePCDFileBinary(holed, cloud), 0);
+
+  const MapData a = readMapFile(clean), b = readMapFile(holed);
+  EXPECT_EQ(a.dropped_non_finite, 0u);
+  EXPECT_TRUE(a.warnings.empty());
+  EXPECT_EQ(b.dropped_non_finite, 25u);
+  EXPECT_TRUE(samePoints(b.corners, corners));
+  EXPECT_TRUE(samePoints(b.surfs, surfs));
+  ASSERT_EQ(b.warnings.size(), 1u);
+  EXPECT_NE(b.warnings[0].find("25 points"), std::string::npos) << b.warnings[0];
+  EXPECT_NE(b.warnings[0].find("NaN"), std::string::npos) << b.warnings[0];
+
+  // A plain x y z cloud without sidecar (ASCII "nan" as other tools write it): the global search takes its
+  // candidates from the map's points, and a NaN among them must not change them.
+  pcl::PointCloud<pcl::PointXYZ> xyz, xyz_holed;
+  for (int i = 0; i < 400; ++i)
+  {
+    xyz.push_back(pcl::PointXYZ(0.1f * (i % 40), 0.1f * (i / 40), 0.05f * (i % 3)));
+  }
+  xyz_holed = xyz;
+  for (int i = 0; i < 25; ++i)
+  {
+    xyz_holed.points.insert(xyz_holed.points.begin() + 10 * i, pcl::PointXYZ(nan, nan, nan));
+  }
+  xyz_holed.width = xyz_holed.size();
+  xyz_holed.is_dense = false;
+  ASSERT_EQ(pcl::io::savePCDFileASCII((dir / "xyz.pcd").string(), xyz), 0);
+  ASSERT_EQ(pcl::io::savePCDFileASCII((dir / "xyz_holed.pcd").string(), xyz_holed), 0);
+  const MapData c = readMapFile((dir / "xyz.pcd").string()), d = readMapFile((dir / "xyz_holed.pcd").string());
+  EXPECT_EQ(d.dropped_non_finite, 25u);
+  EXPECT_TRUE(samePoints(c.surfs, d.surfs));
+  Localizer lc, ld;
+  lc.loadMap(c);
+  ld.loadMap(d);
+  ASSERT_FALSE(lc.globalCandidates().empty());
+  ASSERT_EQ(lc.globalCandidates().size(), ld.globalCandidates().size());
+  for (std::size_t i = 0; i < lc.globalCandidates().size(); ++i)
+  {
+    EXPECT_EQ(lc.globalCandidates()[i], ld.globalCandidates()[i]);
+    EXPECT_TRUE(ld.globalCandidates()[i].allFinite());
+  }
   fs::remove_all(dir);
 }
 

@@ -37,7 +37,9 @@ struct MapData
   MapMetadata metadata;
   /// 0: no sidecar (an older build's map or another tool's cloud), metadata is the defaults.
   int version = 0;
-  /// What the reader had to assume, e.g. every point taken as a plane point.
+  /// Points the file held with a NaN or infinite coordinate: dropped (and said in `warnings`).
+  std::size_t dropped_non_finite = 0;
+  /// What the reader had to assume or drop, e.g. every point taken as a plane point.
   std::vector<std::string> warnings;
 };
 
@@ -62,7 +64,8 @@ void splitMap(const CubeMap& map, Cloud& corners, Cloud& surfs);
 void writeMapFile(const std::string& pcd, const Cloud& corners, const Cloud& surfs, const MapMetadata& metadata);
 
 /// Reads a map written by writeMapFile, a map of an older build (x y z intensity time ring, no sidecar:
-/// plane points, with a warning) or any PCD with x y z (plane points). Throws MapFileError with the reason
+/// plane points, with a warning) or any PCD with x y z (plane points). Points with a non-finite coordinate
+/// are dropped and counted. Throws MapFileError with the reason
 /// when the file is missing, is no PCD, has no x y z, or its sidecar is unreadable or disagrees with it.
 MapData readMapFile(const std::string& pcd);
 
