@@ -12,7 +12,8 @@ export ROS_LOG_DIR="${ROS_LOG_DIR:-$ROS_HOME/log}"
 
 # Debian 12 packages the build, the tests and the tools need. libunwind-dev: Ceres's CMake config loads
 # glog's, which needs libunwind-dev's; apt would take LLVM's libunwind-14-dev for glog's dependency where
-# that is installed (clang development setups), and the configure step then fails.
+# that is installed (clang development setups), and the configure step then fails. xvfb, imagemagick:
+# `demo.sh --screenshot` runs rviz on a virtual display and captures it with ImageMagick's `import`.
 ALOAM_DEBIAN_PACKAGES=(
   build-essential cmake clang libclang-rt-14-dev liblz4-dev catkin python3-catkin-pkg python3-rospkg
   ros-base-dev libroscpp-dev librosbag-dev libnodeletlib-dev libnodeletlib-tools libnodelet-dev
@@ -25,6 +26,7 @@ ALOAM_DEBIAN_PACKAGES=(
   python3-diagnostic-msgs python3-std-srvs python3-nav-msgs python3-sensor-msgs rosbash
   git clang-format python3-rosdep2
   libunwind-dev
+  xvfb imagemagick
 )
 
 aloam_log() { printf '\033[1m[aloam]\033[0m %s\n' "$*" >&2; }

@@ -7,9 +7,18 @@
 #   ./scripts/demo.sh DIR        a KITTI-layout folder: DIR/velodyne/*.bin [+ times.txt, calib.txt,
 #                                poses_kitti_gt.txt or poses.txt], replayed frame by frame (HDL64 preset;
 #                                ALOAM_DEMO_SENSOR=PRESET for another sensor), e.g. ../shared/data/kitti00_101
+#   ./scripts/demo.sh --screenshot PNG [DIR]
+#                                the same with rviz on a virtual display (Xvfb), captured into PNG when 80 %
+#                                of the sweeps are in (the README's picture: docs/images/rviz_drive.png)
 set -euo pipefail
 source "$(dirname "$0")/common.sh"
 
+screenshot=""
+if [ "${1:-}" = --screenshot ]; then
+  [ -n "${2:-}" ] || { echo "demo: --screenshot needs a PNG path" >&2; exit 2; }
+  screenshot="$(cd "$(dirname "$2")" && pwd)/$(basename "$2")"
+  shift 2
+fi
 data="${1:-}"
 if [ -n "$data" ] && [ ! -d "$data/velodyne" ]; then
   cat >&2 <<MSG
@@ -31,7 +40,7 @@ mkdir -p "$out"
 port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 export ROS_MASTER_URI="http://127.0.0.1:$port" ROS_HOSTNAME=127.0.0.1
 
-pipeline_pid=""
+pipeline_pid="" display_pid=""
 stop_pipeline() {
   if [ -n "$pipeline_pid" ] && kill -0 "$pipeline_pid" 2>/dev/null; then
     kill -INT "$pipeline_pid" 2>/dev/null || true
@@ -39,13 +48,35 @@ stop_pipeline() {
   fi
   pipeline_pid=""
 }
-trap stop_pipeline EXIT
+stop_all() {
+  stop_pipeline
+  [ -z "$display_pid" ] || kill "$display_pid" 2>/dev/null || true
+}
+trap stop_all EXIT
+
+rviz=false
+if [ -n "$screenshot" ]; then
+  # A virtual display of rviz's window size (rviz/aloam.rviz) on a free display number.
+  display=99
+  while [ -e "/tmp/.X11-unix/X$display" ] || [ -e "/tmp/.X$display-lock" ]; do display=$((display + 1)); done
+  Xvfb ":$display" -screen 0 1400x900x24 -nolisten tcp >"$out/xvfb.log" 2>&1 &
+  display_pid=$!
+  for _ in $(seq 50); do [ -e "/tmp/.X11-unix/X$display" ] && break; sleep 0.1; done
+  export DISPLAY=":$display"
+  rviz=true
+fi
+
+# take_screenshot_at SECONDS: in the background, captures the display into $screenshot after SECONDS.
+take_screenshot_at() {
+  [ -n "$screenshot" ] || return 0
+  (sleep "$1" && import -window root "$screenshot" && aloam_log "screenshot: $screenshot") &
+}
 
 # start_pipeline SENSOR: roslaunch aloam.launch in the background (log in $out/pipeline.log), then waits
 # until laser_mapping offers its services.
 start_pipeline() {
-  aloam_log "starting the pipeline: roslaunch aloam_nodelet aloam.launch sensor:=$1 rviz:=false (master $ROS_MASTER_URI)"
-  roslaunch aloam_nodelet aloam.launch sensor:="$1" rviz:=false >"$out/pipeline.log" 2>&1 &
+  aloam_log "starting the pipeline: roslaunch aloam_nodelet aloam.launch sensor:=$1 rviz:=$rviz (master $ROS_MASTER_URI)"
+  roslaunch aloam_nodelet aloam.launch sensor:="$1" rviz:="$rviz" >"$out/pipeline.log" 2>&1 &
   pipeline_pid=$!
   local waited=0
   until rosservice list 2>/dev/null | grep -q '^/laser_mapping/save_trajectory$'; do
@@ -79,10 +110,16 @@ if [ -z "$data" ]; then
     | tee "$out/simulation.txt"
   start_pipeline "$sensor"
   aloam_log "playing the bag in real time (rosbag play, velodyne_points only)"
+  # Our own progress (one line per 10 % of the sweeps mapped) instead of rosbag's, which redraws a status
+  # line 100 times a second and scrolls hundreds of lines where the output is not a terminal.
+  python3 "$ALOAM_ROOT/scripts/demo_progress.py" --bag "$bag" &
+  progress_pid=$!
+  take_screenshot_at 10  # the 2 s delay below and 80 % of the 10 s drive
   # -d: time for the pipeline to connect to the new publisher before the first sweep.
-  rosbag play -d 2 --topics velodyne_points -- "$bag"
-  echo
+  rosbag play --quiet -d 2 --topics velodyne_points -- "$bag"
   sleep 2  # the last sweeps leave mapping
+  kill -TERM "$progress_pid" 2>/dev/null || true
+  wait "$progress_pid" 2>/dev/null || true
   save_results
   stop_pipeline
   aloam_log "evaluating against the simulator's ground truth"
@@ -93,6 +130,7 @@ else
   frames=$(find "$data/velodyne" -name '*.bin' | wc -l)
   start_pipeline "$sensor"
   aloam_log "replaying $frames frames of $data into the pipeline, each waiting for its mapped pose"
+  take_screenshot_at $((frames * 8 / 10 * 3 / 10 + 5))  # 80 % of the frames at about 0.3 s each
   python3 "$ALOAM_ROOT/test/tools/replay_kitti.py" "$data" "$out/trajectory_kitti.txt" --timeout 30 \
     | tee "$out/replay.txt"
   call_service /laser_mapping/save_trajectory "{path: '$out/trajectory.tum', format: 'tum'}"
