@@ -42,6 +42,7 @@ run_check() {  # run_check SCRIPT ARGS... (SCRIPT relative to test/): exit 0 pas
   esac
 }
 run_check tools/check_format.sh
+run_check tools/check_param_tables.sh
 run_check tools/check_deps_catch.sh
 run_check tools/check_deps_files.sh
 run_check tools/check_install_space.sh "$checks_out/install_space"

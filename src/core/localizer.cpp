@@ -306,8 +306,8 @@ LocalizationResult Localizer::process(const OdometryFrame& frame)
   }
   const Pose kept = correction_;
   // Settled: localized, and the last frame fitted closely where odometry predicted it. Otherwise more
-  // searches: after a start, odometry underestimates the motion for a few sweeps (KITTI 00 from frame 40:
-  // 0.14, 0.24, 0.35 m for 1 m steps) and two searches per frame fall behind (0.46 m measured).
+  // searches: after a start, odometry underestimates the motion for a few sweeps, and two searches per
+  // frame fall behind (measured on KITTI: docs/accuracy.md#localization).
   const bool settled = state_ == LocalizationState::kLocalized && last_residual_ <= config_.settled_residual &&
                        last_step_ <= config_.settled_step;
   const Pose prediction = kept * frame.pose;

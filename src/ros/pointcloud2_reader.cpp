@@ -456,7 +456,7 @@ DecodeStats decodePoints(const std::uint8_t* data, const DecodePlan& plan, std::
 /// Decodes every complete point into `out` (resized to the points kept), in contiguous stretches, one per
 /// thread of `executor` (when given and the cloud is large), then joined in order: the result does not
 /// depend on the threads. With a cap the data may exceed, in one stretch (the cap keeps the first valid
-/// points). A KITTI sweep of 121 k points: 1.1 ms in one stretch, 0.63 ms in two.
+/// points). Two stretches read a KITTI sweep in about 60 % of the time of one (docs/performance.md).
 template <bool kSwap>
 DecodeStats decodeAll(const std::uint8_t* data, const DecodePlan& plan, double time_reference,
                       aloam::Executor* executor, aloam::Cloud& out)

@@ -127,8 +127,8 @@ private:
 };
 
 // The whole sweep (`full`) is carried for display only: no stage computes with its points, a NaN in a
-// displayed cloud is common in ROS, and checking its points cost 0.6 ms per stage on a 121 k point sweep
-// (most of the time from registration to odometry). Only its size is checked.
+// displayed cloud is common in ROS, and checking its points was most of the time from registration to
+// odometry (docs/performance.md). Only its size is checked.
 std::string checkSize(const Cloud* cloud, const char* name)
 {
   if (cloud != nullptr && cloud->size() > kMaxStagePoints)

@@ -24,28 +24,10 @@ namespace aloam
 /// The background lane runs Jobs: the work a stage does after its result is out (indexing a sweep,
 /// updating the map), started only when a core is idle and then run at normal priority (see Job).
 ///
-/// Idle helpers sleep on a condition variable; nothing spins. Measured (issue 13) on KITTI 00 frames
-/// 0-100, 2 threads per stage, on a 2-vCPU machine loaded by other builds, medians of interleaved runs,
-/// registration / odometry / mapping / map update / to the pose, ms (aloam_bench --only kitti, 6 runs each):
-///   these helpers                                    9.8 /  8.4 / 15.1 / 12.3 / 35.1
-///   helpers awake for 2 ms after a region (yield)   12.7 / 11.2 / 21.8 / 17.7 / 46.7
-///   TBB (task_arena of `threads`, parallel_for)     11.2 / 10.7 / 19.7 / 15.7 / 42.5
-/// Paced at 10 Hz (--pace 10, 4 runs) to the pose 33.5 / 41.9 / 39.0; live through the nodelets at 10 Hz
-/// (scripts/bench.sh --live-only, 4 runs) latency median 32.5 / 32.2 / 33.3, p90 38.6 / 42.9 / 44.0.
-/// On a shared machine a spinning thread takes the core the stage needs; in the least loaded round the
-/// three were within 4 % (28.1 / 27.0 / 27.1). TBB measured more than 5 % slower, so it is not used.
-/// A bounded spin (helpers and the caller awake 0 / 50 / 200 us before sleeping) paced at 10 Hz, 3
-/// interleaved rounds, to the pose medians 30.9 / 30.0 / 29.4 ms: within run-to-run noise, so no spin.
-/// A wake-up itself is cheap (a condition-variable wake takes about 20 us here after 70 ms idle), but
-/// where it lands is not: paced at 10 Hz on this 2-vCPU virtual machine, the kernel woke the helper on
-/// its caller's CPU in about half of all regions (none back to back) while the other CPU idled, so the
-/// two took turns on one CPU: the caller waited 8.3 ms per sweep in the run queue
-/// (/proc/thread-self/schedstat), and to the pose took 29.7 ms paced against 18-21 ms back to back. A
-/// helper that finds itself on its caller's CPU therefore leaves it for the region (executor.cpp,
-/// OffCallerCpu): run-queue wait 0.35 ms, to the pose 23.0 ms paced (2 interleaved rounds, 29.7 / 27.8
-/// -> 23.0 / 22.7 ms), live through the nodelets (3 interleaved rounds) median 30.8 -> 27.0 ms. Caches
-/// cold after the idle gap cost the rest (the caller's share of the regions 12.8 ms per sweep back to
-/// back, 16.5 ms paced).
+/// Idle helpers sleep on a condition variable; nothing spins: helpers kept awake after a region, a
+/// bounded spin and TBB measured no faster (slower on a loaded machine). A helper the kernel wakes on
+/// its caller's CPU leaves that CPU for the region (executor.cpp, OffCallerCpu); otherwise, after idle
+/// gaps on a 2-vCPU virtual machine, the two took turns on one CPU. Figures: docs/performance.md#executor.
 class Executor
 {
 public:
@@ -152,9 +134,7 @@ private:
 
 /// How many chunks a loop whose iterations differ in cost (correspondence searches, residuals) is cut
 /// into per thread: a thread done early takes the chunks left, so a late or slow helper holds nobody up.
-/// 8 measured best of 1 / 4 / 8 (KITTI 00, 2 threads, paced at 10 Hz: to the pose 23.5 / 23.4 / 21.5 ms
-/// mean in one round, 23.9 / 23.7 / 23.1 in another; live medians over 3 interleaved rounds 32.1 vs
-/// 31.2 ms with 1 and 8).
+/// 8 measured best of 1 / 4 / 8 (docs/performance.md#executor).
 inline constexpr int kChunksPerThread = 8;
 
 /// executor->parallelChunks(...), or without an executor every chunk in turn on the calling thread (the

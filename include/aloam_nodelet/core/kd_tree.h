@@ -14,22 +14,9 @@ namespace aloam
 /// no closer point can exist, where an unbounded one keeps descending for a far k-th neighbour.
 /// Queries are const and may run concurrently; build() reuses its buffers.
 ///
-/// Leaves keep their coordinates axis by axis (the distance loop vectorizes) and hold 32 points: against
-/// the former point-by-point leaves of 16 (2026-12-02, medians of 3 interleaved runs of aloam_kd_tree_bench,
-/// idle machine, before/after) per query 337/246 ns (odometry edges, nearest), 425/374 (odometry planes),
-/// 719/554 (map edges, 5 nearest), 574/418 (map planes); builds 0.55/0.43, 2.81/2.46, 3.63/3.09,
-/// 1.67/1.37 ms. The figures below are of the former leaves.
-///
-/// Measured against nanoflann 1.4.3 (Debian's libnanoflann-dev, same leaf size 16, the same interface over
-/// it; issue 13, commit 5b53f83), KITTI 00 0-100, loaded 2-core machine, medians of 7 interleaved runs of
-/// aloam_kd_tree_bench, own/nanoflann: build 0.69/0.68 ms (odometry edges, 5.2k points), 3.9/4.0 (odometry
-/// planes, 29k), 4.3/4.7 (map edges, 31k), 1.7/2.2 (map planes, 16k); per query 362/357 ns, 643/422 ns
-/// (nearest, 25 m^2), 834/905 ns, 561/801 ns (5 nearest, 2 m^2). End to end (aloam_bench --only kitti,
-/// thread CPU ms) odometry 5.3/5.1, mapping 10.3/9.2: within noise; poses identical. Kept our own because
-/// nanoflann cannot be a dependency for most of our users: its rosdep key (`nanoflann`, ros/rosdistro
-/// #35852, 2023) resolves only from Ubuntu 22.04 on; Noetic's Ubuntu 20.04 has no package. The mapping
-/// queries, the most numerous on the pose path, are also faster here. Pruning by each node's tight point
-/// bounds instead of the split cells (as nanoflann does) measured no faster on these clouds.
+/// Leaves keep their coordinates axis by axis (the distance loop vectorizes) and hold 32 points. The tree
+/// is our own rather than nanoflann: nanoflann has no package on Noetic's Ubuntu 20.04, and ours measured
+/// faster on the mapping queries, the most numerous on the pose path. Figures: docs/performance.md#kd-tree.
 class KdTree
 {
 public:

@@ -27,16 +27,14 @@ struct LaserMappingConfig
   int max_iterations = 4;         ///< Levenberg-Marquardt iterations per solve
   int outer_iterations = 2;       ///< correspondence searches per frame, each followed by a solve
   /// Searches for a frame odometry found hard (OdometryFrame::hard(): motion hypotheses tried, degraded
-  /// or remapped): its pose is less certain, so mapping searches more often from it. 4 took the rotation
-  /// drift of the simulated yaw bursts from 24.6-26.3 to 19.3-21.5 deg/100 m (8: no better).
+  /// or remapped): its pose is less certain, so mapping searches more often from it. 4 measured better
+  /// than 2 on the simulated yaw bursts, 8 no better (docs/accuracy.md#measurements-behind-defaults).
   /// <= outer_iterations: every frame alike (A-LOAM).
   int hard_frame_outer_iterations = 4;
   /// true: the first sweep, whose motion is unknown and which therefore could not be deskewed
-  /// (OdometryFrame::distorted), starts the map as it is. Measured on the simulated hand-held walks
-  /// (seeds 1-3) it changed ATE by -0.007..+0.012 m and rotation drift by -0.5..+0.6 deg/100 m: noise, so
-  /// the default stays false and the map starts with the first sweep whose motion is known. On a car
-  /// it is not noise: test_laser_mapping's 14-sweep HDL-64 drive at 10 m/s ends 0.265 m off with it
-  /// (0.037 m odometry; bound 0.05 m), as the undeskewed first sweep warps the map.
+  /// (OdometryFrame::distorted), starts the map as it is. Off: on hand-held walks it measured as noise,
+  /// and on a car the undeskewed first sweep warps the map (test_laser_mapping; figures in
+  /// docs/accuracy.md#measurements-behind-defaults).
   bool insert_distorted_first = false;
   /// true: that distorted first sweep is held and goes into the map with the next sweep, deskewed then
   /// with the motion odometry solved for that next sweep (constant velocity across the two), so the map
@@ -52,10 +50,9 @@ struct LaserMappingConfig
   double line_max_sq_distance = 2.0;
   double line_eigen_ratio = 3.0;  ///< a line needs its largest eigenvalue this times the next
   /// Map points fitted per plane point. On sparse maps (16 beams) five neighbours are often one scan line
-  /// plus a stray point, which fit a plane exactly with a false normal near wall bases and curbs; more
-  /// neighbours within a wider radius and a tighter plane_max_distance (10, 4 m^2, 0.1 m) removed the
-  /// climb of a synthetic VLP-16 drive (+0.41 m -> +0.00 m in z over 40 m) but cost accuracy on KITTI
-  /// (ATE 0.17 -> 0.21 m), so the defaults stay A-LOAM's count.
+  /// plus a stray point, which fit a plane exactly with a false normal near wall bases and curbs. More
+  /// neighbours fixed that on a synthetic VLP-16 drive but cost accuracy on KITTI, so the default stays
+  /// A-LOAM's count (docs/accuracy.md#measurements-behind-defaults).
   int plane_neighbours = 5;
   double plane_max_sq_distance = 2.0;
   double plane_max_distance = 0.2;  ///< every neighbour within this of the fitted plane (m)
@@ -167,8 +164,8 @@ private:
   /// A point's last neighbour search in the frame being solved. Its k nearest map points stay the k
   /// nearest while the query moves by less than half the slack: each of them is then at most d_k + delta
   /// away, every other point at least d_(k+1) - delta (or beyond the search radius). The match, which
-  /// depends only on those points, then holds, and the search is skipped: 52 % of the searches after a
-  /// frame's first on KITTI 00 frames 0-100 (342k of 654k), the trajectory unchanged.
+  /// depends only on those points, then holds, and the search is skipped (about half of the later
+  /// searches on KITTI, trajectory unchanged: docs/performance.md).
   struct SearchMemo
   {
     float query[3];        ///< where the point was searched from (map frame)

@@ -137,7 +137,8 @@ struct OdometryFrame
   std::shared_ptr<const Cloud> surfs;    ///< less flat points
   /// Every point of the sweep, for display only: no stage computes with it. Its points are as registration
   /// gave them (shared, no copy) and still to be moved by `full_motion`; fullAtSweepEnd() does that for
-  /// whoever displays them (deskewing 124 k points took 3 ms of odometry's pose path when done for all).
+  /// whoever displays them (deskewing it for every sweep was a measurable share of odometry's pose path:
+  /// docs/performance.md).
   std::shared_ptr<const Cloud> full;
   Pose full_motion;  ///< sweep start <- sweep end, as deskewToSweepEnd takes it; identity: `full` is done
 };

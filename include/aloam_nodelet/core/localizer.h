@@ -21,13 +21,12 @@ struct LocalizerConfig
   /// A match closer than this to its line or plane is an inlier (m).
   double inlier_residual = 0.2;
   /// Inlier share a frame needs to count as fitting (to become localized, and to recover when lost) ...
-  /// On KITTI 00 (HDL-64 in its own map) a registered sweep measured 0.43-0.45 (many points lie beyond
-  /// the mapped space), a pose 20 m off along the road 0.23-0.26 and 20 m across it 0.06.
+  /// On KITTI a sweep registered in its own map scores above it, one 20 m off below (docs/accuracy.md).
   double localized_share = 0.3;
   /// ... and the share below which a localized frame counts as not fitting: the gap is the hysteresis.
   double lost_share = 0.2;
-  /// Mean distance of the matched points to their lines and planes a fitting frame must stay below (m):
-  /// 0.08 measured registered on KITTI, 0.24-0.29 at 20 m off along the road ...
+  /// Mean distance of the matched points to their lines and planes a fitting frame must stay below (m);
+  /// on KITTI a registered sweep stays well below it, one 20 m off lies above ...
   double max_mean_residual = 0.15;
   /// ... and the one a localized frame may reach before it counts as not fitting (hysteresis).
   double lost_mean_residual = 0.2;

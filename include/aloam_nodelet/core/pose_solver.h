@@ -76,11 +76,8 @@ public:
   /// function, gradient and parameter tolerances 1e-6, 1e-10, 1e-8), so it takes the steps
   /// ceres::Solve(DENSE_QR) takes on MatchResiduals, up to rounding (test_pose_solver). Each evaluation
   /// sums the 6x6 normal equations on the executor; Ceres copied, checked and factored the full Jacobian
-  /// on one thread and evaluated accepted points twice. Measured (issue 13, KITTI 00 0-100, aloam_bench
-  /// --only kitti, same build, two interleaved runs each, Ceres / this): the run's 400 solves took
-  /// 0.57-0.60 / 0.20-0.22 s with 1 thread per stage, 0.70-0.75 / 0.24-0.25 s with 2; to the pose
-  /// (2 threads) 29.7 / 26.1 and 32.4 / 26.9 ms; trajectory the same to the printed digits (1.270 %,
-  /// 1.247 deg/100 m, ATE 0.150 m).
+  /// on one thread and evaluated accepted points twice: its solves took about 3 times as long, for the
+  /// same trajectory (docs/performance.md#pose-solver).
   void solve(int max_iterations);
   Pose pose() const;
 

@@ -32,8 +32,8 @@ struct ScanRegistrationConfig
 
   // LOAM's rejection of unreliable feature candidates. The far side of a depth discontinuity is the edge
   // of an occlusion shadow, which moves with the sensor: matched as an edge it inflates the estimated
-  // motion (static synthetic street, edges only: +5.5 % with HDL-64; all features: +3.8 %, and -0.2 %
-  // with the rejection). Grazing-beam rejection measured no effect there and is off.
+  // motion (measured on a static synthetic street: docs/accuracy.md#measurements-behind-defaults).
+  // Grazing-beam rejection measured no effect there and is off.
   bool reject_occluded = true;           ///< no features beside a depth discontinuity on the far side
   double occlusion_gap_sq = 0.1;         ///< consecutive points this far apart (m^2) may be an occlusion
   double occlusion_max_bearing = 0.1;    ///< ... if their bearings differ by less than this (rad)
