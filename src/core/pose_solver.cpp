@@ -283,6 +283,8 @@ std::vector<DegenerateDirection> Degeneracy::directions() const
   std::vector<DegenerateDirection> out;
   // Left-applied rotation and added translation in the parent frame: d (parent) = R d (child).
   const Eigen::Matrix3d to_child = rotation.transpose();
+  // The reference of `share`: what the well-constrained directions get on average.
+  const double reference = degenerate < 6 ? eigenvalues.tail(6 - degenerate).mean() : eigenvalues[5];
   for (int i = 0; i < degenerate; ++i)
   {
     DegenerateDirection d;
@@ -299,6 +301,7 @@ std::vector<DegenerateDirection> Degeneracy::directions() const
       d.translation = -d.translation;
     }
     d.eigenvalue = eigenvalues[i];
+    d.share = reference > 0.0 ? std::max(eigenvalues[i], 0.0) / reference : 0.0;
     out.push_back(d);
   }
   return out;
@@ -306,23 +309,39 @@ std::vector<DegenerateDirection> Degeneracy::directions() const
 
 std::string describe(const DegenerateDirection& direction)
 {
-  const auto part = [](const char* what, const Eigen::Vector3d& v)
+  // Names of motions along or about the sensor's axes (x forward, y left, z up), for a part within about
+  // 25 deg of one.
+  static const char* const kAlong[3] = { "forward-backward", "left-right", "up-down" };
+  static const char* const kAbout[3] = { "roll", "pitch", "yaw" };
+  constexpr double kNamedCosine = 0.9;
+  const auto part = [&](const char* what, const Eigen::Vector3d& v, const char* const names[3])
   {
     const Eigen::Vector3d u = v.normalized();
-    char text[96];
-    std::snprintf(text, sizeof(text), "%s (%.2f, %.2f, %.2f)", what, u.x(), u.y(), u.z());
+    Eigen::Index axis = 0;
+    const double cosine = u.cwiseAbs().maxCoeff(&axis);
+    char text[128];
+    std::snprintf(text, sizeof(text), "%s (%.2f, %.2f, %.2f)%s%s%s", what, u.x(), u.y(), u.z(),
+                  cosine >= kNamedCosine ? " (" : "", cosine >= kNamedCosine ? names[axis] : "",
+                  cosine >= kNamedCosine ? ")" : "");
     return std::string(text);
   };
+  const auto translation = [&] { return part("translation along", direction.translation, kAlong); };
+  const auto rotation = [&] { return part("rotation about", direction.rotation, kAbout); };
   const double r = direction.rotation.norm(), t = direction.translation.norm();
   // A part under a quarter of the direction's length is left out.
   constexpr double kMinorShare = 0.25;
-  std::string text =
-      t >= r ? part("translation along", direction.translation) : part("rotation about", direction.rotation);
+  std::string text = t >= r ? translation() : rotation();
   const double minor = std::min(r, t);
   if (minor >= kMinorShare)
   {
-    text += " with " +
-            (t >= r ? part("rotation about", direction.rotation) : part("translation along", direction.translation));
+    text += " with " + (t >= r ? rotation() : translation());
+  }
+  if (direction.share >= 0.0)
+  {
+    char share[96];
+    std::snprintf(share, sizeof(share), ": %.*f %% of the constraint of the other directions",
+                  direction.share < 0.1 ? 1 : 0, 100.0 * direction.share);
+    text += share;
   }
   return text;
 }

@@ -394,6 +394,21 @@ TEST(PoseSolver, RemappingKeepsThePriorAlongTheUnconstrainedDirection)
   EXPECT_NEAR(std::fabs(d.translation.dot(x_in_sensor)), 1.0, 1e-6);
   EXPECT_NEAR(d.rotation.norm(), 0.0, 1e-6);
   EXPECT_NEAR(d.eigenvalue, 3.0, 1e-6);
+  // How weak, against the mean of the five others (all six reported with a threshold above them all, at
+  // the same solution as `off`).
+  Pose plain_again = prior;
+  const MatchSolveResult all = solveFixed(slots, false, 1e12, plain_again);
+  ASSERT_EQ(all.degenerate.size(), 6u);
+  double others = 0.0;
+  for (int i = 1; i < 6; ++i)
+  {
+    others += all.degenerate[i].eigenvalue / 5.0;
+  }
+  EXPECT_NEAR(off.degenerate[0].share, off.degenerate[0].eigenvalue / others, 1e-9);
+  EXPECT_GT(d.share, 0.0);
+  EXPECT_LT(d.share, 0.2);
+  EXPECT_NEAR(all.degenerate[5].share, 1.0, 1e-12);  // all six weak: against the strongest
+  EXPECT_NE(describe(d).find("% of the constraint of the other directions"), std::string::npos) << describe(d);
   EXPECT_EQ(describe(d).rfind("translation along (", 0), 0u) << describe(d);
   EXPECT_EQ(describe(d).find("rotation"), std::string::npos) << describe(d);
 }
@@ -436,11 +451,20 @@ TEST(PoseSolver, DescribesDirections)
 {
   DegenerateDirection along_x;
   along_x.translation = Eigen::Vector3d(0.99, 0.01, 0.0);
-  EXPECT_EQ(describe(along_x), "translation along (1.00, 0.01, 0.00)");
+  EXPECT_EQ(describe(along_x), "translation along (1.00, 0.01, 0.00) (forward-backward)");
+  along_x.share = 0.031;
+  EXPECT_EQ(describe(along_x),
+            "translation along (1.00, 0.01, 0.00) (forward-backward): 3.1 % of the constraint of the other directions");
   DegenerateDirection yaw;
   yaw.rotation = Eigen::Vector3d(0.0, 0.0, 0.9);
   yaw.translation = Eigen::Vector3d(0.0, 0.4, 0.0);
-  EXPECT_EQ(describe(yaw), "rotation about (0.00, 0.00, 1.00) with translation along (0.00, 1.00, 0.00)");
+  yaw.share = 0.25;
+  EXPECT_EQ(describe(yaw),
+            "rotation about (0.00, 0.00, 1.00) (yaw) with translation along (0.00, 1.00, 0.00) "
+            "(left-right): 25 % of the constraint of the other directions");
+  DegenerateDirection oblique;
+  oblique.translation = Eigen::Vector3d(0.7, 0.7, 0.0);
+  EXPECT_EQ(describe(oblique), "translation along (0.71, 0.71, 0.00)");
   EXPECT_EQ(describe(std::vector<DegenerateDirection>{}), "none");
 }
 

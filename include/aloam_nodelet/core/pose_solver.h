@@ -33,10 +33,15 @@ struct DegenerateDirection
   Eigen::Vector3d rotation = Eigen::Vector3d::Zero();
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
   double eigenvalue = 0.0;  ///< constraint strength along this direction
+  /// How weak: eigenvalue over the mean of the well-constrained directions' (over the strongest's when
+  /// all six are weak); < 0: not known.
+  double share = -1.0;
 };
 
-/// Readable form for diagnostics, e.g. "translation along (0.99, 0.01, 0.00)" or "rotation about
-/// (0.00, 0.00, 1.00)"; a direction mixing both names the smaller part too.
+/// Readable form for diagnostics, e.g. "translation along (0.99, 0.01, 0.00) (forward-backward): 3 % of
+/// the constraint of the other directions" or "rotation about (0.00, 0.00, 1.00) (yaw)": a part close to
+/// a sensor axis is named (x forward, y left, z up), a direction mixing both names the smaller part too,
+/// and the share is said when known.
 std::string describe(const DegenerateDirection& direction);
 /// All directions, "; "-separated ("none" if empty).
 std::string describe(const std::vector<DegenerateDirection>& directions);
