@@ -93,7 +93,7 @@ for family in "${family_list[@]}"; do
     printf "%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\t%s\n" "$family" "$seed" "$status" \
       "$frames" "$path" "${ours[@]}" "${peer[@]}" "$ours_s" "$peer_s" "$draw_line" >>"$tsv"
     printf "%-17s %4s %-12s ours ATE %8s m  A-LOAM ATE %8s m  (%s s / %s s)\n" "$family" "$seed" "$status" "${ours[0]}" \
-      "${peer[0]}" "$ours_s" "$peer_s" >&2
+      "$([ $with_peer = 1 ] && echo "${peer[0]}" || echo "not run")" "$ours_s" "$peer_s" >&2
     [ "${KEEP_BAGS:-0}" = 1 ] || rm -rf "$run/sim.bag" "$run/kitti"
   done
 done
