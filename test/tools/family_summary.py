@@ -1,12 +1,14 @@
 #!/usr/bin/env python3
 """Summary of eval_families.sh's per-draw table (Debian's python3 with numpy).
 
-  family_summary.py DRAWS.tsv [--no-aloam] [--markdown]
+  family_summary.py DRAWS.tsv [MORE.tsv ...] [--no-aloam] [--markdown]
 
 Per family: the draws evaluated, the median and 90th percentile of ATE (m) and of rotation drift
 (deg/100 m) for this package and for A-LOAM, and the draws where this package's ATE is worse than
 A-LOAM's and more than 20 % worse. A draw counts in a column only where its figure is a number; the draws
-column reads `ours/A-LOAM` evaluated. --no-aloam: A-LOAM was not run (its columns say so).
+column reads `ours/A-LOAM` evaluated. Several tables (runs of other families or seeds) are read as one;
+a (family, seed) met twice counts once, the last one read. --no-aloam: A-LOAM was not run (its columns say
+so); --markdown prints a Markdown table.
 """
 import csv
 import math
@@ -103,10 +105,15 @@ def print_table(table, with_peer, markdown):
 
 def main():
     args = sys.argv[1:]
-    if not args or args[0].startswith("-"):
+    paths = [a for a in args if not a.startswith("--")]
+    if not paths:
         sys.exit(__doc__)
+    rows = {}
+    for path in paths:
+        for row in read_rows(path):
+            rows[(row["family"], row["seed"])] = row
     with_peer = "--no-aloam" not in args
-    print_table(summarize(read_rows(args[0])), with_peer, "--markdown" in args)
+    print_table(summarize(list(rows.values())), with_peer, "--markdown" in args)
 
 
 if __name__ == "__main__":
