@@ -18,7 +18,6 @@ constexpr int kChordsPerVerticalCurve = 4;  // chords approximating each rounded
 constexpr double kBreakpointTolerance = 1e-9;
 constexpr double kDoorHeight = 2.1;           // metres
 constexpr double kDoorBackThickness = 0.1;    // metres, the door leaf behind the recess
-constexpr double kNicheProbability = 0.3;     // a feature is a full-height niche instead of a door
 constexpr double kNicheWidth = 1.5;           // metres
 constexpr double kNicheDepth = 0.6;           // metres
 constexpr double kCorridorFloorMargin = 2.0;  // metres, floor and ceiling run past the walls
@@ -29,7 +28,6 @@ constexpr double kFieldGroundMargin = 200.0;
 constexpr double kFieldFirstObjectX = 20.0;
 constexpr double kFieldMinLateral = 8.0;
 constexpr double kFieldLateralSpan = 20.0;
-constexpr int kFieldObjectCount = 5;
 constexpr double kPi = 3.14159265358979323846;
 // Office clutter (cabinets against the walls).
 constexpr double kClutterMinStretch = 1.6;  // metres of plain wall needed for a cabinet
@@ -146,7 +144,8 @@ struct WallFeatures
   double recess_depth_m = 0.3;
   double clutter_probability = 0.0;  // 0: no cabinets (and no random numbers drawn for them)
   double clutter_depth_max_m = 0.5;
-  bool close_niches = false;  // side walls between the wall's back and the niche's back
+  bool close_niches = false;       // side walls between the wall's back and the niche's back
+  double niche_probability = 0.3;  // a feature is a full-height niche instead of a door
 };
 
 void addBox(Scene& scene, const WallLayout& wall, double u0, double u1, double v0, double v1, double z0, double z1,
@@ -180,16 +179,42 @@ void addWallStretch(Scene& scene, DeterministicRng& rng, const WallFeatures& f, 
          SurfaceClass::Other);
 }
 
-/// A wall with recessed doors and full-height niches about every feature_spacing_m.
-void addCorridorWall(Scene& scene, DeterministicRng& rng, const WallFeatures& f, const WallLayout& wall)
+/// What fills the opening [gap_start, gap_end] of a wall: a full-height niche or a recessed door.
+void addOpening(Scene& scene, const WallFeatures& f, const WallLayout& wall, bool niche, double gap_start,
+                double gap_end)
 {
   const double face = wall.face_v;
   const double back = face + wall.outward * f.wall_thickness_m;
+  if (niche)
+  {
+    const double niche_back = face + wall.outward * kNicheDepth;
+    addBox(scene, wall, gap_start, gap_end, niche_back, niche_back + wall.outward * f.wall_thickness_m, 0.0, f.height_m,
+           SurfaceClass::Building);
+    if (f.close_niches)
+    {
+      addBox(scene, wall, gap_start - kDoorBackThickness, gap_start, back, niche_back, 0.0, f.height_m,
+             SurfaceClass::Building);
+      addBox(scene, wall, gap_end, gap_end + kDoorBackThickness, back, niche_back, 0.0, f.height_m,
+             SurfaceClass::Building);
+    }
+  }
+  else
+  {
+    const double door = face + wall.outward * f.recess_depth_m;
+    addBox(scene, wall, gap_start, gap_end, door, door + wall.outward * kDoorBackThickness, 0.0, kDoorHeight,
+           SurfaceClass::Other);
+    addBox(scene, wall, gap_start, gap_end, face, back, kDoorHeight, f.height_m, SurfaceClass::Building);
+  }
+}
+
+/// A wall with recessed doors and full-height niches about every feature_spacing_m.
+void addCorridorWall(Scene& scene, DeterministicRng& rng, const WallFeatures& f, const WallLayout& wall)
+{
   double wall_start = wall.u_start;
   double center = wall.first_center;
   while (true)
   {
-    const bool niche = rng.uniform01() < kNicheProbability;
+    const bool niche = rng.uniform01() < f.niche_probability;
     const double width = niche ? kNicheWidth : f.door_width_m;
     const double gap_start = center - 0.5 * width;
     const double gap_end = center + 0.5 * width;
@@ -198,28 +223,31 @@ void addCorridorWall(Scene& scene, DeterministicRng& rng, const WallFeatures& f,
       break;
     }
     addWallStretch(scene, rng, f, wall, wall_start, gap_start);
-    if (niche)
-    {
-      const double niche_back = face + wall.outward * kNicheDepth;
-      addBox(scene, wall, gap_start, gap_end, niche_back, niche_back + wall.outward * f.wall_thickness_m, 0.0,
-             f.height_m, SurfaceClass::Building);
-      if (f.close_niches)
-      {
-        addBox(scene, wall, gap_start - kDoorBackThickness, gap_start, back, niche_back, 0.0, f.height_m,
-               SurfaceClass::Building);
-        addBox(scene, wall, gap_end, gap_end + kDoorBackThickness, back, niche_back, 0.0, f.height_m,
-               SurfaceClass::Building);
-      }
-    }
-    else
-    {
-      const double door = face + wall.outward * f.recess_depth_m;
-      addBox(scene, wall, gap_start, gap_end, door, door + wall.outward * kDoorBackThickness, 0.0, kDoorHeight,
-             SurfaceClass::Other);
-      addBox(scene, wall, gap_start, gap_end, face, back, kDoorHeight, f.height_m, SurfaceClass::Building);
-    }
+    addOpening(scene, f, wall, niche, gap_start, gap_end);
     wall_start = gap_end;
     center += f.feature_spacing_m + rng.uniform(-1.0, 1.0) * f.spacing_jitter_m;
+  }
+  addWallStretch(scene, rng, f, wall, wall_start, wall.u_end);
+}
+
+/// A wall with openings centered on the given u (ascending); openings that do not fit are skipped.
+void addWallWithOpenings(Scene& scene, DeterministicRng& rng, const WallFeatures& f, const WallLayout& wall,
+                         const std::vector<double>& centers)
+{
+  double wall_start = wall.u_start;
+  for (const double center : centers)
+  {
+    const bool niche = rng.uniform01() < f.niche_probability;
+    const double width = niche ? kNicheWidth : f.door_width_m;
+    const double gap_start = center - 0.5 * width;
+    const double gap_end = center + 0.5 * width;
+    if (gap_start < wall_start + kDoorBackThickness || gap_end > wall.u_end - kDoorBackThickness)
+    {
+      continue;
+    }
+    addWallStretch(scene, rng, f, wall, wall_start, gap_start);
+    addOpening(scene, f, wall, niche, gap_start, gap_end);
+    wall_start = gap_end;
   }
   addWallStretch(scene, rng, f, wall, wall_start, wall.u_end);
 }
@@ -227,7 +255,14 @@ void addCorridorWall(Scene& scene, DeterministicRng& rng, const WallFeatures& f,
 
 Scene urbanStreetWithHill(unsigned seed, double length_m, const GroundProfile& profile)
 {
-  const Scene flat = Scene::urbanStreet(seed, length_m);
+  UrbanStreetOptions options;
+  options.length_m = length_m;
+  return urbanStreetWithHill(seed, options, profile);
+}
+
+Scene urbanStreetWithHill(unsigned seed, const UrbanStreetOptions& options, const GroundProfile& profile)
+{
+  const Scene flat = Scene::urbanStreet(seed, options);
   std::vector<Primitive> primitives;
   primitives.reserve(flat.size() + 2 * kChordsPerVerticalCurve + 3);
   for (const Primitive& primitive : flat.primitives())
@@ -268,9 +303,15 @@ Scene corridorScene(unsigned seed, const CorridorOptions& o)
   scene.add(PlanePatch::horizontal(o.height_m, x_lo, x_hi, -outer - kCorridorFloorMargin, outer + kCorridorFloorMargin),
             SurfaceClass::Building);
   // End walls.
-  scene.add(boxFromCorners(-o.wall_thickness_m, 0.0, -outer, outer, 0.0, o.height_m), SurfaceClass::Building);
-  scene.add(boxFromCorners(o.length_m, o.length_m + o.wall_thickness_m, -outer, outer, 0.0, o.height_m),
-            SurfaceClass::Building);
+  if (o.back_wall)
+  {
+    scene.add(boxFromCorners(-o.wall_thickness_m, 0.0, -outer, outer, 0.0, o.height_m), SurfaceClass::Building);
+  }
+  if (o.front_wall)
+  {
+    scene.add(boxFromCorners(o.length_m, o.length_m + o.wall_thickness_m, -outer, outer, 0.0, o.height_m),
+              SurfaceClass::Building);
+  }
 
   WallFeatures features;
   features.height_m = o.height_m;
@@ -279,8 +320,25 @@ Scene corridorScene(unsigned seed, const CorridorOptions& o)
   features.spacing_jitter_m = o.spacing_jitter_m;
   features.door_width_m = o.door_width_m;
   features.recess_depth_m = o.recess_depth_m;
+  features.niche_probability = o.niche_probability;
   for (const double side : { 1.0, -1.0 })
   {
+    if (!o.feature_x.empty())
+    {
+      WallLayout wall;
+      wall.face_v = side * half_width;
+      wall.outward = side;
+      wall.u_start = 0.0;
+      wall.u_end = o.length_m;
+      std::vector<double> centers;
+      for (std::size_t i = side > 0.0 ? 0 : 1; i < o.feature_x.size(); i += 2)
+      {
+        centers.push_back(o.feature_x[i]);
+      }
+      std::sort(centers.begin(), centers.end());
+      addWallWithOpenings(scene, rng, features, wall, centers);
+      continue;
+    }
     WallLayout wall;
     wall.face_v = side * half_width;
     wall.outward = side;
@@ -291,7 +349,7 @@ Scene corridorScene(unsigned seed, const CorridorOptions& o)
     addCorridorWall(scene, rng, features, wall);
   }
   // Ceiling lights.
-  for (double x = 0.5 * o.light_spacing_m; x < o.length_m; x += o.light_spacing_m)
+  for (double x = 0.5 * o.light_spacing_m; o.light_spacing_m > 0.0 && x < o.length_m; x += o.light_spacing_m)
   {
     scene.add(OrientedBox(Eigen::Vector3d(x, 0.0, o.height_m - kLightHalfExtentZ),
                           Eigen::Vector3d(kLightHalfExtentX, kLightHalfExtentY, kLightHalfExtentZ)),
@@ -378,11 +436,11 @@ Scene officeScene(unsigned seed, const OfficeOptions& o)
 
   // Ceiling lights on both centerlines.
   const Eigen::Vector3d light(kLightHalfExtentX, kLightHalfExtentY, kLightHalfExtentZ);
-  for (double x = 0.5 * o.light_spacing_m; x < inner_x; x += o.light_spacing_m)
+  for (double x = 0.5 * o.light_spacing_m; o.light_spacing_m > 0.0 && x < inner_x; x += o.light_spacing_m)
   {
     scene.add(OrientedBox(Eigen::Vector3d(x, 0.0, o.height_m - kLightHalfExtentZ), light), SurfaceClass::Other);
   }
-  for (double y = 0.0; y < end_y - 0.5 * o.light_spacing_m; y += o.light_spacing_m)
+  for (double y = 0.0; o.light_spacing_m > 0.0 && y < end_y - 0.5 * o.light_spacing_m; y += o.light_spacing_m)
   {
     scene.add(OrientedBox(Eigen::Vector3d(o.turnCenterX(), y, o.height_m - kLightHalfExtentZ),
                           Eigen::Vector3d(light.y(), light.x(), light.z())),
@@ -573,7 +631,7 @@ Scene stairsScene(unsigned seed, const StairsOptions& o)
   return scene;
 }
 
-Scene openFieldScene(unsigned seed, double length_m)
+Scene openFieldScene(unsigned seed, double length_m, int object_count)
 {
   DeterministicRng rng(seed);
   Scene scene;
@@ -581,9 +639,9 @@ Scene openFieldScene(unsigned seed, double length_m)
                                    -kFieldGroundMargin, kFieldGroundMargin),
             SurfaceClass::Ground);
   const double span = std::max(length_m - kFieldFirstObjectX, 1.0);
-  for (int i = 0; i < kFieldObjectCount; ++i)
+  for (int i = 0; i < object_count; ++i)
   {
-    const double x = kFieldFirstObjectX + span * (i + rng.uniform(0.2, 0.8)) / kFieldObjectCount;
+    const double x = kFieldFirstObjectX + span * (i + rng.uniform(0.2, 0.8)) / object_count;
     const double side = rng.uniform01() < 0.5 ? -1.0 : 1.0;
     const double y = side * (kFieldMinLateral + rng.uniform01() * kFieldLateralSpan);
     switch (i % 3)

@@ -130,18 +130,35 @@ double smoothstep(double u)
   return u * u * (3.0 - 2.0 * u);
 }
 
+/// Time lost to standing at the start by time t (the speed rises over stop_edge_s after start_rest_s).
+double startLostTime(const HandHeldOptions& o, double t)
+{
+  if (o.start_rest_s <= 0.0 || t <= 0.0)
+  {
+    return 0.0;
+  }
+  if (t <= o.start_rest_s)
+  {
+    return t;
+  }
+  // The speed rises like the falling edge of a stop: lost time = rest + edge - the rise's integral.
+  const double s = std::min(t - o.start_rest_s, o.stop_edge_s);
+  return o.start_rest_s + s - burstAngle(s, o.stop_edge_s, o.stop_edge_s);
+}
+
 /// Time spent walking by time t (t minus the time lost to the stops, weighted by the speed dip).
 double walkedTime(const HandHeldOptions& o, double t)
 {
   const double since_first = t - o.first_stop_s;
+  const double start_lost = startLostTime(o, t);
   if (o.stop_interval_s <= 0.0 || since_first <= 0.0)
   {
-    return t;
+    return t - start_lost;
   }
   const double dip = o.stop_edge_s + o.stop_still_s;  // burst-profile "duration" of one stop
   const long index = static_cast<long>(std::floor(since_first / o.stop_interval_s));
   const double tau = since_first - static_cast<double>(index) * o.stop_interval_s;
-  return t - static_cast<double>(index) * dip - burstAngle(tau, dip, o.stop_edge_s);
+  return t - start_lost - static_cast<double>(index) * dip - burstAngle(tau, dip, o.stop_edge_s);
 }
 
 /// Heading of a turn of `angle` spread over `length` metres, `s` metres into it.
@@ -215,6 +232,16 @@ PoseFunction carDrive(double speed, const GroundProfile& ground)
 
 double handHeldYawRate(const HandHeldOptions& options, double t)
 {
+  if (!options.burst_times_s.empty())
+  {
+    double rate = 0.0;
+    for (std::size_t i = 0; i < options.burst_times_s.size(); ++i)
+    {
+      rate += burstSign(static_cast<long>(i)) *
+              burstRate(t - options.burst_times_s[i], options.burst_duration_s, options.burst_edge_s);
+    }
+    return options.burst_rate_rad_s * rate;
+  }
   const double since_first = t - options.first_burst_s;
   if (since_first < 0.0)
   {
@@ -227,6 +254,16 @@ double handHeldYawRate(const HandHeldOptions& options, double t)
 
 double handHeldYaw(const HandHeldOptions& options, double t)
 {
+  if (!options.burst_times_s.empty())
+  {
+    double angle = 0.0;
+    for (std::size_t i = 0; i < options.burst_times_s.size(); ++i)
+    {
+      angle += burstSign(static_cast<long>(i)) *
+               burstAngle(t - options.burst_times_s[i], options.burst_duration_s, options.burst_edge_s);
+    }
+    return options.burst_rate_rad_s * angle;
+  }
   const double since_first = t - options.first_burst_s;
   if (since_first < 0.0)
   {
@@ -254,6 +291,11 @@ PoseFunction handHeld(const HandHeldOptions& options)
     pose.linear() = (Eigen::AngleAxisd(handHeldYaw(options, t), Eigen::Vector3d::UnitZ()) *
                      Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
                         .toRotationMatrix();
+    if (options.pitch_amplitude_rad != 0.0)
+    {
+      const double pitch = options.pitch_amplitude_rad * std::cos(0.5 * bob_phase);
+      pose.linear() = pose.linear() * Eigen::AngleAxisd(pitch, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    }
     pose.translation() = Eigen::Vector3d(x, 0.0, z);
     return pose;
   };
@@ -274,14 +316,20 @@ double handHeldDistance(const HandHeldOptions& options, double t)
 
 double handHeldSpeed(const HandHeldOptions& options, double t)
 {
+  double start_factor = 1.0;
+  if (options.start_rest_s > 0.0 && t < options.start_rest_s + options.stop_edge_s)
+  {
+    start_factor = t <= options.start_rest_s ? 0.0 : burstRate(t - options.start_rest_s, 1e9, options.stop_edge_s);
+  }
   const double since_first = t - options.first_stop_s;
   if (options.stop_interval_s <= 0.0 || since_first < 0.0)
   {
-    return options.speed;
+    return options.speed * start_factor;
   }
   const long index = static_cast<long>(std::floor(since_first / options.stop_interval_s));
   const double tau = since_first - static_cast<double>(index) * options.stop_interval_s;
-  return options.speed * (1.0 - burstRate(tau, options.stop_edge_s + options.stop_still_s, options.stop_edge_s));
+  return options.speed * start_factor *
+         (1.0 - burstRate(tau, options.stop_edge_s + options.stop_still_s, options.stop_edge_s));
 }
 
 HandHeldOptions handHeldBurstsOptions()

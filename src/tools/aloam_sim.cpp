@@ -24,6 +24,7 @@
 
 #include "aloam_nodelet/core/sensor_model.h"
 #include "aloam_nodelet/eval/trajectory_io.h"
+#include "aloam_nodelet/sim/families.h"
 #include "aloam_nodelet/sim/raycaster.h"
 #include "aloam_nodelet/sim/scenes_extra.h"
 #include "aloam_nodelet/sim/trajectories.h"
@@ -52,6 +53,20 @@ constexpr const char* kWorldFrame = "world";
 const char* const kUsage =
     "usage: aloam_sim --sensor PRESET --scene SCENE --trajectory TRAJECTORY --duration SECONDS --seed N\n"
     "                 [--noise SIGMA_M] [--dropout P] [--keep-every N] --bag OUT.bag [--kitti OUT_DIR]\n"
+    "       aloam_sim --sensor PRESET --family FAMILY --duration SECONDS --seed N [same options]\n"
+    "  --family FAMILY    draw the scene and the motion from a family's ranges by --seed (printed as one\n"
+    "                     `draw: family=... key=value ...` line); FAMILY is one of\n"
+    "                     corridor   1.8-4 m wide, 50-300 m, end walls near / far / open, doors or niches\n"
+    "                                every 5-100 m, sometimes one turn; hand-held\n"
+    "                     tunnel     5-10 m wide, sparse niches / lights / standpipes; car 5-20 m/s\n"
+    "                     office     L of two corridors with doors, niches and cabinets; walk around it\n"
+    "                     stairwell  one flight of 10-20 risers; hand-held climb\n"
+    "                     urban      street with buildings, cars, poles, trees, a hill; car or hand-held\n"
+    "                     field      open ground with 0-10 objects; car or hand-held\n"
+    "                     corridor_issue23  the corridor of issue 23 (2.5 x 200 m, closed, six 0.25 m door\n"
+    "                                recesses from 40 m ahead; 1.4 m/s, 10 deg sway, 90 deg/s bursts)\n"
+    "                     Hand-held motions: sway 0-15 deg, yaw bursts 0-120 deg/s at random times, maybe a\n"
+    "                     start from rest and stops. The seed also seeds the noise.\n"
     "  --sensor PRESET    VLP16, HDL32, HDL64, VLP32C (Velodyne layout), OS1_64, OS0_64, OS1_128 (Ouster layout)\n"
     "  --scene SCENE      urban     street with buildings, parked cars, poles, trees and a hill\n"
     "                     corridor  straight indoor corridor 2.5 m wide, 100 m long, doors and niches\n"
@@ -90,6 +105,7 @@ struct Options
   int keep_every = 1;
   std::string bag;
   std::string kitti;
+  std::string family;
 };
 
 Options parseArguments(int argc, char** argv)
@@ -123,6 +139,8 @@ Options parseArguments(int argc, char** argv)
       o.scene = value();
     else if (arg == "--trajectory")
       o.trajectory = value();
+    else if (arg == "--family")
+      o.family = value();
     else if (arg == "--duration")
       o.duration = number();
     else if (arg == "--seed")
@@ -160,7 +178,22 @@ Options parseArguments(int argc, char** argv)
     else
       throw std::invalid_argument("unknown argument " + arg);
   }
-  if (o.sensor.empty() || o.scene.empty() || o.trajectory.empty() || o.bag.empty() || !o.has_seed)
+  if (!o.family.empty())
+  {
+    if (!o.scene.empty() || !o.trajectory.empty())
+    {
+      throw std::invalid_argument("--family replaces --scene and --trajectory");
+    }
+    if (!aloam::sim::familyFromName(o.family))
+    {
+      throw std::invalid_argument("unknown family " + o.family);
+    }
+    if (o.sensor.empty() || o.bag.empty() || !o.has_seed)
+    {
+      throw std::invalid_argument("--sensor, --family, --duration, --seed and --bag are required");
+    }
+  }
+  else if (o.sensor.empty() || o.scene.empty() || o.trajectory.empty() || o.bag.empty() || !o.has_seed)
   {
     throw std::invalid_argument("--sensor, --scene, --trajectory, --duration, --seed and --bag are required");
   }
@@ -171,6 +204,10 @@ Options parseArguments(int argc, char** argv)
   if (o.noise < 0.0 || o.dropout < 0.0 || o.dropout >= 1.0)
   {
     throw std::invalid_argument("--noise must be >= 0 and --dropout in [0, 1)");
+  }
+  if (!o.family.empty())
+  {
+    return o;
   }
   const std::vector<std::string> scenes = { "urban", "corridor", "field", "office", "tunnel", "stairs" };
   if (std::find(scenes.begin(), scenes.end(), o.scene) == scenes.end())
@@ -523,11 +560,28 @@ int run(const Options& o)
   const int published = static_cast<int>(starts.size());
 
   const auto build_start = std::chrono::steady_clock::now();
-  const TrajectorySetup trajectory = makeTrajectory(o);
-  const aloam::sim::Scene scene = makeScene(o, trajectory);
+  std::optional<aloam::sim::FamilyDraw> draw;
+  if (!o.family.empty())
+  {
+    draw = aloam::sim::drawFamily(*aloam::sim::familyFromName(o.family), o.seed, o.duration);
+    std::printf("draw: %s\n", draw->describe().c_str());
+    std::fflush(stdout);
+  }
+  TrajectorySetup trajectory;
+  if (draw)
+  {
+    trajectory.pose_at = aloam::sim::familyMotion(*draw);
+  }
+  else
+  {
+    trajectory = makeTrajectory(o);
+  }
+  const aloam::sim::Scene scene = draw ? aloam::sim::familyScene(*draw) : makeScene(o, trajectory);
+  const std::string scene_name = draw ? o.family : o.scene;
+  const std::string trajectory_name = draw ? "drawn" : o.trajectory;
   const double build_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - build_start).count();
-  std::cerr << "aloam_sim: " << o.sensor << ", scene " << o.scene << " (" << scene.size() << " primitives, built in "
-            << build_seconds << " s), trajectory " << o.trajectory << ", " << sweeps << " sweeps";
+  std::cerr << "aloam_sim: " << o.sensor << ", scene " << scene_name << " (" << scene.size() << " primitives, built in "
+            << build_seconds << " s), trajectory " << trajectory_name << ", " << sweeps << " sweeps";
   if (o.keep_every > 1)
   {
     std::cerr << ", every " << o.keep_every << "th published (" << published << ")";
@@ -627,8 +681,8 @@ int run(const Options& o)
   const double loop_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - loop_start).count();
   std::printf("aloam_sim summary\n");
   std::printf("  sensor %s (%d rings x %d columns, %.3f s), scene %s (%zu primitives), trajectory %s, seed %u\n",
-              o.sensor.c_str(), sensor->numRings(), sensor->columns(), period, o.scene.c_str(), scene.size(),
-              o.trajectory.c_str(), o.seed);
+              o.sensor.c_str(), sensor->numRings(), sensor->columns(), period, scene_name.c_str(), scene.size(),
+              trajectory_name.c_str(), o.seed);
   std::printf(
       "  sweeps %d (every %d of %d), points %zu (%.0f per sweep), path %.2f m (polyline of the published poses), noise "
       "%.3f m, dropout %.3f\n",

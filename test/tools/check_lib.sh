@@ -26,12 +26,23 @@ field() { awk -v k="$1" '{for (i = 1; i < NF; ++i) if ($i == k) {print $(i + 1);
 # on a failure print the step that failed (with its log) and return 1.
 hard_case_metrics="$(cd "$(dirname "${BASH_SOURCE[0]}")" && pwd)/hard_case_metrics.py"
 
-# simulate RUN SENSOR SCENE TRAJECTORY DURATION_S SEED KEEP_EVERY: RUN/sim.bag (log RUN/sim.txt) and its
-# ground truth RUN/gt.txt (RUN/gt_info.txt: `frames N period_s P`).
+# simulate RUN SENSOR SCENE TRAJECTORY DURATION_S SEED KEEP_EVERY [ALOAM_SIM_ARGS...]: RUN/sim.bag (log
+# RUN/sim.txt) and its ground truth RUN/gt.txt (RUN/gt_info.txt: `frames N period_s P`). With
+# WITH_KITTI=1 also the sweeps in KITTI layout under RUN/kitti (for A-LOAM, see run_peer).
 simulate() {
   local run="$1"
-  "$bin/aloam_sim" --sensor "$2" --scene "$3" --trajectory "$4" --duration "$5" --seed "$6" --keep-every "$7" \
-    --bag "$run/sim.bag" >"$run/sim.txt" 2>&1 || { echo "aloam_sim (see $run/sim.txt)"; return 1; }
+  simulate_with "$run" --sensor "$2" --scene "$3" --trajectory "$4" --duration "$5" --seed "$6" --keep-every "$7" \
+    "${@:8}"
+}
+
+# simulate_with RUN ALOAM_SIM_ARGS...: as simulate, with aloam_sim's arguments given whole (e.g. --family).
+simulate_with() {
+  local run="$1"
+  shift
+  local kitti=()
+  [ "${WITH_KITTI:-0}" = 1 ] && kitti=(--kitti "$run/kitti")
+  "$bin/aloam_sim" "$@" "${kitti[@]}" --bag "$run/sim.bag" >"$run/sim.txt" 2>&1 ||
+    { echo "aloam_sim (see $run/sim.txt)"; return 1; }
   python3 "$hard_case_metrics" gt "$run/sim.bag" "$run/gt.txt" >"$run/gt_info.txt" 2>&1 ||
     { echo "ground truth (see $run/gt_info.txt)"; return 1; }
 }
@@ -46,8 +57,42 @@ map_and_evaluate() {
   "$bin/aloam_offline" --bag "$run/sim.bag" --topic velodyne_points --sensor "$sensor" --deskew \
     --trajectory "$run/$mode.txt" "$@" >"$run/$mode.offline.txt" 2>&1 ||
     { echo "aloam_offline (see $run/$mode.offline.txt)"; return 1; }
+  evaluate "$run" "$mode" "$segments"
+}
+
+# evaluate RUN MODE SEGMENTS: RUN/MODE.txt against RUN/gt.txt, as map_and_evaluate does.
+evaluate() {
+  local run="$1" mode="$2" segments="$3"
   "$bin/aloam_eval" --gt "$run/gt.txt" --trajectory "$run/$mode.txt" --segments "$segments" \
     >"$run/$mode.eval.txt" 2>&1 || { echo "aloam_eval (see $run/$mode.eval.txt)"; return 1; }
   python3 "$hard_case_metrics" compare "$run/gt.txt" "$run/$mode.txt" >"$run/$mode.compare.txt" 2>&1 ||
     { echo "hard_case_metrics.py compare (see $run/$mode.compare.txt)"; return 1; }
+}
+
+# A-LOAM beside this package (issue 23). The reference A-LOAM lives in ../shared/peers beside the repository
+# (ALOAM_PEERS overrides); build it once with `$peers/build_aloam.sh WS` (about 3 minutes) and point
+# ALOAM_PEER_WS at WS (default: build_aloam.sh's default workspace, ${TMPDIR:-/tmp}/aloam_ws).
+aloam_root="$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd)"
+peers="${ALOAM_PEERS:-$aloam_root/../shared/peers}"
+peer_ws="${ALOAM_PEER_WS:-${TMPDIR:-/tmp}/aloam_ws}"
+
+# peer_ready: true when A-LOAM is built (then run_peer works).
+peer_ready() { [ -x "$peer_ws/devel/lib/aloam_velodyne/alaserMapping" ] && [ -x "$peers/run_aloam.sh" ]; }
+
+# run_peer RUN MODE SENSOR SEGMENTS: A-LOAM on RUN/kitti/velodyne (simulate with WITH_KITTI=1) into
+# RUN/MODE.txt (log RUN/MODE.run.txt), with A-LOAM's own launch values for the sensor's beam count
+# (scan_line 16 / 32 / 64, and its minimum range and leaf sizes), then evaluated as evaluate does.
+run_peer() {
+  local run="$1" mode="$2" sensor="$3" segments="$4" values
+  case "$sensor" in
+    VLP16) values="16 0.3 0.2 0.4" ;;
+    HDL32 | VLP32C) values="32 0.3 0.2 0.4" ;;
+    HDL64) values="64 5 0.4 0.8" ;;
+    *) echo "A-LOAM has no launch values for $sensor"; return 1 ;;
+  esac
+  # shellcheck disable=SC2086
+  ALOAM_WS="$peer_ws" "$peers/run_aloam.sh" "$run/kitti/velodyne" "$run/$mode.txt" $values >"$run/$mode.run.txt" 2>&1 ||
+    { echo "A-LOAM (see $run/$mode.run.txt)"; return 1; }
+  [ -s "$run/$mode.txt" ] || { echo "A-LOAM wrote no pose (see $run/$mode.run.txt)"; return 1; }
+  evaluate "$run" "$mode" "$segments"
 }

@@ -15,6 +15,9 @@
 # (deg/100 m) over the case's segment lengths, the largest heading (yaw) error without alignment (deg),
 # and how many estimated steps move against the true step (dot product < 0) among the true steps
 # longer than 5 cm. frames / period_s are the published sweeps and the spacing of their stamps.
+# A-LOAM's ATE and rotation drift on the same sweeps stand beside ours (aloam_ate_m, aloam_rot) when A-LOAM is
+# built (check_lib.sh's run_peer: ../shared/peers/build_aloam.sh, ALOAM_PEER_WS); otherwise they read
+# "not_run", and "-" where A-LOAM has no launch values for the sensor (Ouster).
 set -uo pipefail
 source "$(dirname "$0")/check_lib.sh"
 need_args 2 $#
@@ -39,8 +42,11 @@ case_table=(
 )
 
 results="$out/results.txt"
-header=$(printf "%-20s %4s %6s %8s %8s %9s %12s %11s %9s" case seed frames period_s ate_m drift_% "rot_deg/100m" \
-  max_head_deg backward)
+header=$(printf "%-20s %4s %6s %8s %8s %9s %12s %11s %9s %11s %10s" case seed frames period_s ate_m drift_% \
+  "rot_deg/100m" max_head_deg backward aloam_ate_m aloam_rot)
+with_peer=0
+peer_ready && with_peer=1
+export WITH_KITTI=$with_peer
 echo "# aloam_offline extra args: ${offline_args[*]:-(none)}" | tee "$results"
 echo "$header" | tee -a "$results"
 start_all=$(date +%s)
@@ -59,12 +65,21 @@ for row in "${case_table[@]}"; do
       status=1
       continue
     fi
-    [ "${KEEP_BAGS:-0}" = 1 ] || rm -f "$run/sim.bag"
-    printf "%-20s %4s %6s %8s %8s %9s %12s %11s %9s\n" "$name" "$seed" "$(field frames "$run/gt_info.txt")" \
+    peer_ate=not_run peer_rot=not_run
+    if [ $with_peer = 1 ]; then
+      if run_peer "$run" aloam "$sensor" "$segments" >/dev/null; then
+        peer_ate=$(figure ate_rmse_m "$run/aloam.eval.txt") peer_rot=$(figure rotation_deg_per_100m "$run/aloam.eval.txt")
+      else
+        peer_ate=- peer_rot=-
+      fi
+    fi
+    [ "${KEEP_BAGS:-0}" = 1 ] || rm -rf "$run/sim.bag" "$run/kitti"
+    printf "%-20s %4s %6s %8s %8s %9s %12s %11s %9s %11s %10s\n" "$name" "$seed" "$(field frames "$run/gt_info.txt")" \
       "$(field period_s "$run/gt_info.txt")" "$(figure ate_rmse_m "$run/est.eval.txt")" \
       "$(figure translation_drift_percent "$run/est.eval.txt")" "$(figure rotation_deg_per_100m "$run/est.eval.txt")" \
       "$(field max_heading_deg "$run/est.compare.txt")" \
-      "$(field backward_steps "$run/est.compare.txt")/$(field of "$run/est.compare.txt")" | tee -a "$results"
+      "$(field backward_steps "$run/est.compare.txt")/$(field of "$run/est.compare.txt")" "$peer_ate" "$peer_rot" |
+      tee -a "$results"
   done
 done
 echo "# $(($(date +%s) - start_all)) s; per-run files under $out" | tee -a "$results"

@@ -12,7 +12,8 @@
 # Needs Debian's python3 (rosbag, numpy) first on PATH and the workspace's setup.bash sourced.
 #
 # Columns: ATE (m, after rigid alignment), translation drift (%) and rotation drift (deg/100 m) over
-# 10, 20 and 50 m segments.
+# 10, 20 and 50 m segments. A-LOAM's ATE and rotation drift on the same sweeps beside them when A-LOAM is
+# built (as in eval_hard_cases.sh; "-" for the presets A-LOAM has no launch values for).
 set -uo pipefail
 source "$(dirname "$0")/check_lib.sh"
 need_args 2 $#
@@ -26,7 +27,11 @@ mkdir -p "$out"
 
 results="$out/results.txt"
 echo "# aloam_offline extra args: ${offline_args[*]:-(none)}" | tee "$results"
-printf "%-8s %4s %8s %9s %12s\n" sensor seed ate_m drift_% "rot_deg/100m" | tee -a "$results"
+printf "%-8s %4s %8s %9s %12s %11s %10s\n" sensor seed ate_m drift_% "rot_deg/100m" aloam_ate_m aloam_rot |
+  tee -a "$results"
+with_peer=0
+peer_ready && with_peer=1
+export WITH_KITTI=$with_peer
 start_all=$(date +%s)
 status=0
 for sensor in $sensors; do
@@ -39,10 +44,18 @@ for sensor in $sensors; do
       status=1
       continue
     fi
-    rm -f "$run/sim.bag"
-    printf "%-8s %4s %8s %9s %12s\n" "$sensor" "$seed" "$(figure ate_rmse_m "$run/est.eval.txt")" \
-      "$(figure translation_drift_percent "$run/est.eval.txt")" "$(figure rotation_deg_per_100m "$run/est.eval.txt")" |
-      tee -a "$results"
+    peer_ate=not_run peer_rot=not_run
+    if [ $with_peer = 1 ]; then
+      if run_peer "$run" aloam "$sensor" 10,20,50 >/dev/null; then
+        peer_ate=$(figure ate_rmse_m "$run/aloam.eval.txt") peer_rot=$(figure rotation_deg_per_100m "$run/aloam.eval.txt")
+      else
+        peer_ate=- peer_rot=-
+      fi
+    fi
+    rm -rf "$run/sim.bag" "$run/kitti"
+    printf "%-8s %4s %8s %9s %12s %11s %10s\n" "$sensor" "$seed" "$(figure ate_rmse_m "$run/est.eval.txt")" \
+      "$(figure translation_drift_percent "$run/est.eval.txt")" "$(figure rotation_deg_per_100m "$run/est.eval.txt")" \
+      "$peer_ate" "$peer_rot" | tee -a "$results"
   done
 done
 echo "# $(($(date +%s) - start_all)) s; per-run files under $out" | tee -a "$results"

@@ -2,6 +2,8 @@
 // open field, an L-shaped office corridor, a road tunnel and a stairwell. ROS-free.
 #pragma once
 
+#include <vector>
+
 #include "aloam_nodelet/sim/scene.h"
 
 namespace aloam
@@ -34,6 +36,8 @@ struct GroundProfile
 /// plane is replaced by planar patches (vertical curves approximated by short chords) and every
 /// other primitive is lifted by the lowest ground height under its footprint.
 Scene urbanStreetWithHill(unsigned seed, double length_m, const GroundProfile& profile = GroundProfile());
+/// The same with every option of the street (its length is options.length_m).
+Scene urbanStreetWithHill(unsigned seed, const UrbanStreetOptions& options, const GroundProfile& profile);
 
 /// Options of corridorScene. The corridor runs along +x from x = 0 to x = length_m, centered on y = 0.
 struct CorridorOptions
@@ -45,8 +49,14 @@ struct CorridorOptions
   double feature_spacing_m = 8.0;  // mean spacing of doors / recesses along each wall
   double spacing_jitter_m = 1.5;   // uniform jitter of that spacing
   double door_width_m = 1.0;
-  double recess_depth_m = 0.3;   // doors are recessed this far behind the wall face
-  double light_spacing_m = 4.0;  // ceiling lights (small boxes)
+  double recess_depth_m = 0.3;     // doors are recessed this far behind the wall face
+  double light_spacing_m = 4.0;    // ceiling lights (small boxes); 0: none
+  double niche_probability = 0.3;  // chance that a feature is a full-height niche instead of a door
+  bool back_wall = true;           // end wall at x = 0; without it the corridor is open there
+  bool front_wall = true;          // end wall at x = length_m
+  /// When not empty: the x of every feature's center (doors / niches), placed on alternating walls
+  /// starting with the +y wall, instead of the layout every feature_spacing_m.
+  std::vector<double> feature_x;
 };
 
 /// Indoor corridor with doors / recesses on alternating walls (deterministic for a seed).
@@ -54,7 +64,7 @@ Scene corridorScene(unsigned seed, const CorridorOptions& options = CorridorOpti
 
 /// Flat ground (z = 0) with very few objects (a few boxes, poles and a boulder) scattered along +x
 /// between x = 20 and x = length_m, at least 8 m from the x axis.
-Scene openFieldScene(unsigned seed, double length_m = 300.0);
+Scene openFieldScene(unsigned seed, double length_m = 300.0, int object_count = 5);
 
 /// Options of officeScene: an L of two corridors with doors, niches, cabinets and ceiling lights, floor
 /// at z = 0 and a ceiling. The first corridor runs along +x from its end wall at x = 0, centered on
@@ -72,7 +82,7 @@ struct OfficeOptions
   double spacing_jitter_m = 1.5;
   double door_width_m = 1.0;
   double recess_depth_m = 0.25;
-  double light_spacing_m = 3.0;
+  double light_spacing_m = 3.0;      // 0: no lights
   double clutter_probability = 0.5;  // chance of a cabinet against each stretch of wall between openings
   double clutter_depth_max_m = 0.5;  // cabinets stick out at most this far from the wall face
 

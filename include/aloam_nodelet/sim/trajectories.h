@@ -48,6 +48,12 @@ struct HandHeldOptions
   double first_stop_s = 3.5;     // start of the first deceleration
   double stop_edge_s = 0.4;
   double stop_still_s = 1.0;
+  double pitch_amplitude_rad = 0.0;  // pitch sway, a quarter period after the roll sway
+  /// When not empty: the start times (s) of the yaw bursts, ascending (same left, right, right, left
+  /// pattern), instead of one every burst_interval_s from first_burst_s.
+  std::vector<double> burst_times_s;
+  /// > 0: the walker stands still for this long at the start, then speeds up over stop_edge_s.
+  double start_rest_s = 0.0;
   GroundProfile ground = GroundProfile::flat();
 };
 
