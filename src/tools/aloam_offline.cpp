@@ -74,6 +74,11 @@ constexpr const char* kUsage =
     "                     rings (nearby_scan) instead of degrees\n"
     "  --nearby-elevation-deg DEG\n"
     "                     odometry's ring neighbourhood in degrees of elevation (0: nearby_scan rings)\n"
+    "  --reject-occluded on|off\n"
+    "                     scan_registration's reject_occluded (default: on, off for --kitti)\n"
+    "  --no-motion-hypotheses\n"
+    "                     odometry never tries other starts after a poor solve (laser_odometry's\n"
+    "                     motion_hypotheses: false)\n"
     "  --odometry-min-constraint X, --mapping-min-constraint X\n"
     "                     the stages' min_constraint (directions weaker than X are degenerate)\n";
 
@@ -88,6 +93,8 @@ struct Options
   std::size_t start_frame = 0;
   bool deskew = false;
   bool baseline = false;
+  bool motion_hypotheses = true;
+  std::optional<bool> reject_occluded;
   std::size_t keep_every = 1;
   std::optional<double> odometry_min_constraint, mapping_min_constraint, nearby_elevation_deg;
   std::optional<double> minimum_range;
@@ -285,6 +292,18 @@ bool parse(int argc, char** argv, Options& o)
       o.deskew = true;
     else if (arg == "--baseline")
       o.baseline = true;
+    else if (arg == "--no-motion-hypotheses")
+      o.motion_hypotheses = false;
+    else if (arg == "--reject-occluded")
+    {
+      std::string onoff;
+      value(onoff);
+      if (onoff != "on" && onoff != "off")
+      {
+        throw std::invalid_argument("--reject-occluded takes on or off");
+      }
+      o.reject_occluded = onoff == "on";
+    }
     else if (arg == "--odometry-min-constraint")
     {
       value(number);
@@ -415,6 +434,11 @@ int main(int argc, char** argv)
   if (opt.nearby_elevation_deg)
   {
     config.odometry.nearby_elevation_deg = *opt.nearby_elevation_deg;
+  }
+  config.odometry.motion_hypotheses = config.odometry.motion_hypotheses && opt.motion_hypotheses;
+  if (opt.reject_occluded)
+  {
+    config.registration.reject_occluded = *opt.reject_occluded;
   }
 
   std::unique_ptr<FrameSource> source;
