@@ -56,7 +56,7 @@ echo "# aloam_offline extra args: ${offline_args[*]:-(none)}" | tee -a "$out/sum
 start_all=$(date +%s)
 IFS=, read -r -a family_list <<<"$families"
 for family in "${family_list[@]}"; do
-  for ((seed = first_seed; seed < first_seed + draws; ++seed)); do
+  for seed in $(seq "$first_seed" $((first_seed + draws - 1))); do
     run="$out/${family}_s$seed"
     rm -rf "$run"
     mkdir -p "$run"
