@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include <pcl/common/io.h>
+#include <pcl/common/point_tests.h>
 #include <pcl/conversions.h>
 #include <pcl/io/pcd_io.h>
 #include <pcl/io/impl/pcd_io.hpp>
@@ -155,12 +156,6 @@ bool hasField(const pcl::PCLPointCloud2& blob, const std::string& name, std::uin
     }
   }
   return false;
-}
-
-template <typename P>
-bool isFinite(const P& p)
-{
-  return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z);
 }
 
 void append(Cloud& cloud, float x, float y, float z)
@@ -314,7 +309,7 @@ MapData readMapFile(const std::string& pcd)
     pcl::fromPCLPointCloud2(blob, cloud);
     for (const auto& p : cloud.points)
     {
-      if (!isFinite(p))
+      if (!pcl::isFinite(p))
       {
         ++non_finite;
         continue;
@@ -335,7 +330,7 @@ MapData readMapFile(const std::string& pcd)
     pcl::fromPCLPointCloud2(blob, cloud);
     for (const auto& p : cloud.points)
     {
-      if (!isFinite(p))
+      if (!pcl::isFinite(p))
       {
         ++non_finite;
         continue;

@@ -185,6 +185,20 @@ Eigen::Vector2d direction(double heading)
 {
   return Eigen::Vector2d(std::cos(heading), std::sin(heading));
 }
+
+/// The bursts at options.burst_times_s, signed left, right, right, left, ... and shaped by `profile`
+/// (burstRate for the yaw rate, burstAngle for the yaw), times the burst rate.
+double sumOfTimedBursts(const HandHeldOptions& options, double t, double (*profile)(double, double, double))
+{
+  double sum = 0.0;
+  for (std::size_t i = 0; i < options.burst_times_s.size(); ++i)
+  {
+    sum += burstSign(static_cast<long>(i)) *
+           profile(t - options.burst_times_s[i], options.burst_duration_s, options.burst_edge_s);
+  }
+  return options.burst_rate_rad_s * sum;
+}
+
 }  // namespace
 
 GroundProfile GroundProfile::flat()
@@ -234,13 +248,7 @@ double handHeldYawRate(const HandHeldOptions& options, double t)
 {
   if (!options.burst_times_s.empty())
   {
-    double rate = 0.0;
-    for (std::size_t i = 0; i < options.burst_times_s.size(); ++i)
-    {
-      rate += burstSign(static_cast<long>(i)) *
-              burstRate(t - options.burst_times_s[i], options.burst_duration_s, options.burst_edge_s);
-    }
-    return options.burst_rate_rad_s * rate;
+    return sumOfTimedBursts(options, t, burstRate);
   }
   const double since_first = t - options.first_burst_s;
   if (since_first < 0.0)
@@ -256,13 +264,7 @@ double handHeldYaw(const HandHeldOptions& options, double t)
 {
   if (!options.burst_times_s.empty())
   {
-    double angle = 0.0;
-    for (std::size_t i = 0; i < options.burst_times_s.size(); ++i)
-    {
-      angle += burstSign(static_cast<long>(i)) *
-               burstAngle(t - options.burst_times_s[i], options.burst_duration_s, options.burst_edge_s);
-    }
-    return options.burst_rate_rad_s * angle;
+    return sumOfTimedBursts(options, t, burstAngle);
   }
   const double since_first = t - options.first_burst_s;
   if (since_first < 0.0)
