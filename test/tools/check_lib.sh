@@ -90,9 +90,23 @@ run_peer() {
     HDL64) values="64 5 0.4 0.8" ;;
     *) echo "A-LOAM has no launch values for $sensor"; return 1 ;;
   esac
-  # shellcheck disable=SC2086
-  ALOAM_WS="$peer_ws" "$peers/run_aloam.sh" "$run/kitti/velodyne" "$run/$mode.txt" $values >"$run/$mode.run.txt" 2>&1 ||
-    { echo "A-LOAM (see $run/$mode.run.txt)"; return 1; }
-  [ -s "$run/$mode.txt" ] || { echo "A-LOAM wrote no pose (see $run/$mode.run.txt)"; return 1; }
+  # With ALOAM_PEER_CACHE=DIR, A-LOAM's trajectory is kept under a checksum of the exact sweeps and its
+  # values, and reused when the same sweeps come again (A-LOAM in lockstep is deterministic); it is
+  # evaluated afresh either way.
+  local key="" cached=""
+  if [ -n "${ALOAM_PEER_CACHE:-}" ]; then
+    key=$( (cat "$run"/kitti/velodyne/*.bin; echo "$values") | md5sum | cut -d' ' -f1)
+    cached="$ALOAM_PEER_CACHE/$key.txt"
+  fi
+  if [ -n "$cached" ] && [ -s "$cached" ]; then
+    cp "$cached" "$run/$mode.txt"
+    echo "reused A-LOAM's trajectory for the same sweeps from $cached" >"$run/$mode.run.txt"
+  else
+    # shellcheck disable=SC2086
+    ALOAM_WS="$peer_ws" "$peers/run_aloam.sh" "$run/kitti/velodyne" "$run/$mode.txt" $values >"$run/$mode.run.txt" 2>&1 ||
+      { echo "A-LOAM (see $run/$mode.run.txt)"; return 1; }
+    [ -s "$run/$mode.txt" ] || { echo "A-LOAM wrote no pose (see $run/$mode.run.txt)"; return 1; }
+    [ -z "$cached" ] || { mkdir -p "$ALOAM_PEER_CACHE" && cp "$run/$mode.txt" "$cached"; }
+  fi
   evaluate "$run" "$mode" "$segments"
 }

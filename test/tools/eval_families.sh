@@ -15,7 +15,8 @@
 #   ALOAM_OFFLINE_ARGS  passed on to every aloam_offline run (e.g. --baseline)
 # Environment: SENSOR (default VLP16), DURATION (s, default 15: 150 sweeps at 10 Hz), KEEP_BAGS=1 keeps the
 #   bags and KITTI folders, ALOAM_PEER_WS (A-LOAM's workspace, default ${TMPDIR:-/tmp}/aloam_ws), ALOAM_PEERS
-#   (default ../shared/peers beside the repository).
+#   (default ../shared/peers beside the repository), ALOAM_PEER_CACHE (a folder: A-LOAM's trajectory of each
+#   draw is kept there under a checksum of the sweeps and reused when the same sweeps come again).
 # A-LOAM: build it once with `../shared/peers/build_aloam.sh /tmp/aloam_ws` (about 3 minutes; it installs
 #   libtf-dev if missing). Without it only this package's figures are printed, and the summary says so.
 # Needs Debian's python3 (rosbag, numpy) first on PATH and the workspace's setup.bash sourced.
