@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 #include <numeric>
+#include <Eigen/Core>
 
 #include "aloam_nodelet/core/fast_atan2.h"
 #include "aloam_nodelet/core/voxel_filter.h"
@@ -112,6 +113,33 @@ float squaredGap(const Point& a, const Point& b)
 {
   const float dx = a.x - b.x, dy = a.y - b.y, dz = a.z - b.z;
   return dx * dx + dy * dy + dz * dz;
+}
+
+// True when `to` lies on the line that `beyond` -> `from` continues across the gap, within `tolerance`
+// times the gap and at most `cap` metres. `beyond` is the return two steps away from the gap on `from`'s side.
+bool continuesLine(const Point& to, const Point& from, const Point& beyond, float tolerance, float cap)
+{
+  const Eigen::Vector3f axis(from.x - beyond.x, from.y - beyond.y, from.z - beyond.z);
+  const float length = axis.norm();
+  if (length < 1e-3f)
+  {
+    return false;
+  }
+  const Eigen::Vector3f step(to.x - from.x, to.y - from.y, to.z - from.z);
+  const float along = step.dot(axis) / length;
+  const float across = (step - along * axis / length).norm();
+  return along > 0.0f && across <= std::min(tolerance * step.norm(), cap);
+}
+
+// A gap between neighbours a (index i) and b (i + 1) of one ring is no occlusion when either side's
+// surface runs on across it: one surface seen at a grazing angle (a corridor wall ahead), or two that meet
+// in a concave corner (wall and floor). Only a gap that neither side explains hides a surface behind an edge.
+bool gapIsContinuous(const Cloud& full, int i, int begin, int end, float tolerance, float cap)
+{
+  const Point& a = full.points[i];
+  const Point& b = full.points[i + 1];
+  return continuesLine(b, a, full.points[std::max(i - 2, begin)], tolerance, cap) ||
+         continuesLine(a, b, full.points[std::min(i + 3, end - 1)], tolerance, cap);
 }
 }  // namespace
 
@@ -322,7 +350,10 @@ void ScanRegistration::markUnreliable(const Cloud& full, int begin, int end, Reg
       // Chord between the two unit bearings: about the angle between the beams.
       const float dx = a.x / ra - b.x / rb, dy = a.y / ra - b.y / rb, dz = a.z / ra - b.z / rb;
       const float bearing = std::sqrt(dx * dx + dy * dy + dz * dz);
-      if (bearing < config_.occlusion_max_bearing)
+      const float tolerance = static_cast<float>(config_.occlusion_continuity);
+      const float cap = static_cast<float>(config_.occlusion_continuity_cap);
+      if (bearing < config_.occlusion_max_bearing &&
+          !(tolerance > 0.0f && gapIsContinuous(full, i, begin, end, tolerance, cap)))
       {
         if (ra > rb)
         {

@@ -76,6 +76,9 @@ constexpr const char* kUsage =
     "                     odometry's ring neighbourhood in degrees of elevation (0: nearby_scan rings)\n"
     "  --reject-occluded on|off\n"
     "                     scan_registration's reject_occluded (default: on, off for --kitti)\n"
+    "  --occlusion-continuity X\n"
+    "                     scan_registration's occlusion_continuity: a gap that a surface runs on across\n"
+    "                     (within X times the gap) is no occlusion (default 0: every gap, as LOAM)\n"
     "  --no-motion-hypotheses\n"
     "                     odometry never tries other starts after a poor solve (laser_odometry's\n"
     "                     motion_hypotheses: false)\n"
@@ -95,6 +98,7 @@ struct Options
   bool baseline = false;
   bool motion_hypotheses = true;
   std::optional<bool> reject_occluded;
+  std::optional<double> occlusion_continuity;
   std::size_t keep_every = 1;
   std::optional<double> odometry_min_constraint, mapping_min_constraint, nearby_elevation_deg;
   std::optional<double> minimum_range;
@@ -304,6 +308,11 @@ bool parse(int argc, char** argv, Options& o)
       }
       o.reject_occluded = onoff == "on";
     }
+    else if (arg == "--occlusion-continuity")
+    {
+      value(number);
+      o.occlusion_continuity = std::stod(number);
+    }
     else if (arg == "--odometry-min-constraint")
     {
       value(number);
@@ -439,6 +448,10 @@ int main(int argc, char** argv)
   if (opt.reject_occluded)
   {
     config.registration.reject_occluded = *opt.reject_occluded;
+  }
+  if (opt.occlusion_continuity)
+  {
+    config.registration.occlusion_continuity = *opt.occlusion_continuity;
   }
 
   std::unique_ptr<FrameSource> source;

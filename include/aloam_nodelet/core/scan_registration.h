@@ -34,12 +34,17 @@ struct ScanRegistrationConfig
   // of an occlusion shadow, which moves with the sensor: matched as an edge it inflates the estimated
   // motion (measured on a static synthetic street: docs/accuracy.md#measurements-behind-defaults).
   // Grazing-beam rejection measured no effect there and is off.
-  bool reject_occluded = true;           ///< no features beside a depth discontinuity on the far side
-  double occlusion_gap_sq = 0.1;         ///< consecutive points this far apart (m^2) may be an occlusion
-  double occlusion_max_bearing = 0.1;    ///< ... if their bearings differ by less than this (rad)
-  bool reject_grazing = false;           ///< no features on surfaces nearly parallel to the beam
-  double grazing_gap_ratio_sq = 0.0002;  ///< gap^2 to both neighbours above this * range^2
-  int threads = 2;                       ///< threads sharing the rings of a sweep (results do not depend on it)
+  bool reject_occluded = true;         ///< no features beside a depth discontinuity on the far side
+  double occlusion_gap_sq = 0.1;       ///< consecutive points this far apart (m^2) may be an occlusion
+  double occlusion_max_bearing = 0.1;  ///< ... if their bearings differ by less than this (rad)
+  // A gap that either side's surface runs on across (a wall at a grazing angle, a concave corner) is no
+  // shadow: its far side keeps its features. 0 (the default) marks every such gap, as LOAM does; 0.15
+  // helps straight corridors but costs the street scenes (docs/accuracy_families.md), so it stays off.
+  double occlusion_continuity = 0.0;      ///< ... unless one side's line passes this close (times the gap) to the other
+  double occlusion_continuity_cap = 0.2;  ///< ... and at most this close (m): far gaps to another object stay shadows
+  bool reject_grazing = false;            ///< no features on surfaces nearly parallel to the beam
+  double grazing_gap_ratio_sq = 0.0002;   ///< gap^2 to both neighbours above this * range^2
+  int threads = 2;                        ///< threads sharing the rings of a sweep (results do not depend on it)
 };
 
 /// Turns one sweep into a FeatureSet. Holds only its configuration and reusable buffers; a sweep never
