@@ -681,15 +681,28 @@ def answered_matrices(answers):
 def simulate(directory, name, sensor, scene, trajectory, duration, seed, keep_every=1):
     """Runs aloam_sim into DIRECTORY/NAME.bag; returns the bag path. Seeded, so every run is the same.
     keep_every > 1 publishes only every N-th sweep (a throttled topic, stamps N sweep periods apart)."""
+    return _run_sim(directory, name, ["--sensor", sensor, "--scene", scene, "--trajectory", trajectory,
+                                      "--duration", str(duration), "--seed", str(seed),
+                                      "--keep-every", str(int(keep_every))])
+
+
+def simulate_family(directory, name, sensor, family, seed, duration):
+    """As simulate, with the scene and motion drawn from FAMILY by SEED (aloam_sim --family); returns
+    (bag path, aloam_sim's `draw:` line with every drawn value)."""
+    bag, output = _run_sim(directory, name, ["--sensor", sensor, "--family", family, "--seed", str(seed),
+                                             "--duration", str(duration)], with_output=True)
+    draw = next((line[len("draw: "):] for line in output.splitlines() if line.startswith("draw: ")), "")
+    return bag, draw
+
+
+def _run_sim(directory, name, args, with_output=False):
     bag = os.path.join(directory, name + ".bag")
-    proc = subprocess.run([devel_tool("aloam_sim"), "--sensor", sensor, "--scene", scene, "--trajectory", trajectory,
-                           "--duration", str(duration), "--seed", str(seed), "--keep-every", str(int(keep_every)),
-                           "--bag", bag],
+    proc = subprocess.run([devel_tool("aloam_sim")] + args + ["--bag", bag],
                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, universal_newlines=True, timeout=300)
     if proc.returncode != 0:
         raise AssertionError("aloam_sim failed (%d):\n%s" % (proc.returncode, proc.stdout))
     print(proc.stdout.strip().splitlines()[-4], flush=True)
-    return bag
+    return (bag, proc.stdout) if with_output else bag
 
 
 def bag_ground_truth(path, topic="ground_truth"):
@@ -697,6 +710,23 @@ def bag_ground_truth(path, topic="ground_truth"):
     import rosbag
     with rosbag.Bag(path) as bag:
         return [pose_to_matrix(msg.pose.pose) for _, msg, _ in bag.read_messages(topics=[topic])]
+
+
+MIN_STEP_M = 0.05  # true steps shorter than this are not checked for direction
+
+
+def backward_steps(estimate, truth):
+    """(estimated steps against the true step, true steps longer than MIN_STEP_M), relative to the first pose."""
+    est, gt = relative_to_first(estimate), relative_to_first(truth)
+    backward = steps = 0
+    for i in range(len(gt) - 1):
+        true_step = gt[i + 1][:3, 3] - gt[i][:3, 3]
+        if np.linalg.norm(true_step) <= MIN_STEP_M:
+            continue
+        steps += 1
+        if float(np.dot(true_step, est[i + 1][:3, 3] - est[i][:3, 3])) < 0.0:
+            backward += 1
+    return backward, steps
 
 
 def relative_to_first(matrices):

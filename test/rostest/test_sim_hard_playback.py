@@ -25,7 +25,6 @@ import rostest
 
 import aloam_rostest_utils as u
 
-MIN_STEP_M = 0.05  # true steps shorter than this are not checked for direction
 DEGENERATE_KEY = "degenerate (sensor frame)"
 REMAPPED_KEY = "remapped frames (partially degenerate)"
 DEGRADED_KEY = "degraded frames"
@@ -46,20 +45,6 @@ CASES = {
 DIRECTION = re.compile(r"(translation along|rotation about) \(([-0-9.]+), ([-0-9.]+), ([-0-9.]+)\)")
 
 
-def backward_steps(estimate, truth):
-    """(estimated steps against the true step, true steps longer than MIN_STEP_M), relative to the first pose."""
-    est, gt = u.relative_to_first(estimate), u.relative_to_first(truth)
-    backward = steps = 0
-    for i in range(len(gt) - 1):
-        true_step = gt[i + 1][:3, 3] - gt[i][:3, 3]
-        if np.linalg.norm(true_step) <= MIN_STEP_M:
-            continue
-        steps += 1
-        if float(np.dot(true_step, est[i + 1][:3, 3] - est[i][:3, 3])) < 0.0:
-            backward += 1
-    return backward, steps
-
-
 class TestSimHardPlayback(u.ScratchTestCase):
 
     def play_case(self, ns):
@@ -67,7 +52,7 @@ class TestSimHardPlayback(u.ScratchTestCase):
         bag = u.simulate(self.scratch, ns, sensor, scene, trajectory, duration, seed, keep_every=keep)
         answers, truth, elapsed = u.play_simulated(self, bag, ns=ns)
         metrics, report = u.evaluate(self, ns, answers, truth, segments)
-        backward, steps = backward_steps(u.answered_matrices(answers), truth)
+        backward, steps = u.backward_steps(u.answered_matrices(answers), truth)
         print("RESULT %s (%s, %s %s, keep every %d, seed %d): %d sweeps in %.1f s over %.1f m; ATE %.3f m (<= %.2f), "
               "rotation %.1f deg/100 m (<= %s), drift %.2f %%, backward steps %d of %d"
               % (ns, sensor, scene, trajectory, keep, seed, len(answers), elapsed, u.path_length(truth),
