@@ -29,7 +29,8 @@ ALOAM_DEBIAN_PACKAGES=(
   xvfb imagemagick
 )
 
-aloam_log() { printf '\033[1m[aloam]\033[0m %s\n' "$*" >&2; }
+# Each line carries the minutes and seconds since the script started, so a log shows where the time goes.
+aloam_log() { printf '\033[1m[aloam %d:%02d]\033[0m %s\n' $((SECONDS / 60)) $((SECONDS % 60)) "$*" >&2; }
 
 # Installs whatever of ALOAM_DEBIAN_PACKAGES is missing (needs root or sudo).
 aloam_install_deps() {

@@ -34,6 +34,7 @@ bin="$ALOAM_WS/devel/lib/aloam_nodelet"
 checks_out="$ALOAM_WS/test_output"
 run_check() {  # run_check SCRIPT ARGS... (SCRIPT relative to test/): exit 0 passed, 77 skipped, else failed
   local status=0
+  aloam_log "check $1"
   bash "$ALOAM_ROOT/test/$1" "${@:2}" || status=$?
   case $status in
     0) tools_passed=$((tools_passed + 1)) ;;

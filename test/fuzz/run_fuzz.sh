@@ -14,7 +14,7 @@ if ! command -v clang++ >/dev/null; then
 fi
 # The fuzz targets take libFuzzer's main; the objects they link (stage messages) are instrumented for it
 # too (fuzzer-no-link: coverage without a second main), so the fuzzer is guided inside the stages.
-object_flags=(-std=c++17 -g -O1 -fsanitize=address,undefined,fuzzer-no-link -fno-sanitize-recover=undefined
+object_flags=(-std=c++17 -g1 -O1 -fsanitize=address,undefined,fuzzer-no-link -fno-sanitize-recover=undefined
   -I "$root/include" -isystem /usr/include/eigen3 -isystem /usr/include/pcl-1.13)
 flags=("${object_flags[@]}" -fsanitize=fuzzer)
 stage_messages=false

@@ -26,7 +26,7 @@ start=$SECONDS
 # reference counting above all) stay inside our binaries. Exported, they would take the place of the
 # uninstrumented libraries' own copies for some calls only, and TSan would see half of roscpp's and
 # nodelet's reference counting (a free on a worker thread against a count dropped by the unloading thread).
-flags="-fsanitize=thread -fno-omit-frame-pointer -g -O1 -fvisibility-inlines-hidden"
+flags="-fsanitize=thread -fno-omit-frame-pointer -g1 -O1 -fvisibility-inlines-hidden"
 (cd "$ws" && "${clean_env[@]}" catkin_make -DCMAKE_BUILD_TYPE=None "-DCMAKE_CXX_FLAGS=$flags" \
   "-DCMAKE_SHARED_LINKER_FLAGS=-fsanitize=thread" "-DCMAKE_EXE_LINKER_FLAGS=-fsanitize=thread" \
   -DCATKIN_ENABLE_TESTING=OFF -DALOAM_TSAN_HOST=ON tsan_nodelet_pipeline -j"$(nproc)") >"$out/build.log" 2>&1 ||

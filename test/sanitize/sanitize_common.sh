@@ -41,7 +41,7 @@ sanitize_core_sources() {  # sanitize_core_sources ROOT: the sources, one a line
 sanitize_build_core_tests() {
   local root="$1" out="$2" exe="$3"
   shift 3
-  local flags=(-std=c++17 -O1 -g -fno-omit-frame-pointer "$@"
+  local flags=(-std=c++17 -O1 -g1 -fno-omit-frame-pointer "$@"
                -I "$root/include" -I /usr/include/eigen3 -I /usr/include/pcl-1.13)
   local sources=() objects=() src start=$SECONDS
   mapfile -t sources < <(sanitize_core_sources "$root")
