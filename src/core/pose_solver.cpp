@@ -210,6 +210,7 @@ Degeneracy PoseProblem::degeneracy(double lever_arm, double threshold) const
 {
   Degeneracy out;
   out.lever_arm = lever_arm;
+  out.threshold = threshold;
   out.rotation = pose().q.toRotationMatrix();
   if (matchCount() == 0)
   {
@@ -250,7 +251,7 @@ int PoseProblem::inliers(double max_residual) const
   return count;
 }
 
-void PoseProblem::remap(const Pose& prior, const Degeneracy& degeneracy)
+void PoseProblem::remap(const Pose& prior, const Degeneracy& degeneracy, bool soft)
 {
   if (degeneracy.degenerate == 0)
   {
@@ -261,8 +262,14 @@ void PoseProblem::remap(const Pose& prior, const Degeneracy& degeneracy)
   const Eigen::AngleAxisd step_rotation(current.q * prior.q.conjugate());
   Eigen::Matrix<double, kTangentSize, 1> step;
   step << degeneracy.lever_arm * step_rotation.angle() * step_rotation.axis(), current.t - prior.t;
-  const auto weak = degeneracy.eigenvectors.leftCols(degeneracy.degenerate);
-  step -= weak * (weak.transpose() * step);
+  for (int i = 0; i < degeneracy.degenerate; ++i)
+  {
+    const double keep = soft && degeneracy.threshold > 0.0
+                            ? std::clamp(degeneracy.eigenvalues[i] / degeneracy.threshold, 0.0, 1.0)
+                            : 0.0;
+    const auto v = degeneracy.eigenvectors.col(i);
+    step -= (1.0 - keep) * v * (v.transpose() * step);
+  }
   const Eigen::Vector3d rotation = step.head<3>() / degeneracy.lever_arm;
   const double angle = rotation.norm();
   const Eigen::Quaterniond dq =

@@ -276,6 +276,7 @@ void LaserMappingNodelet::reconfigureCb(const LaserMappingConfig& c)
   config.plane_neighbours = c.plane_neighbours;
   config.eviction_radius = c.eviction_radius;
   config.degeneracy_remap = c.degeneracy_remap;
+  config.soft_remap = c.soft_remap;
   config.deskew_first_late = c.deskew_first_late;
   // Waits for the frame being mapped; a new cube size re-buckets the map (no point is lost).
   const auto [before, after] = session_->setMappingConfig(config);

@@ -82,6 +82,8 @@ constexpr const char* kUsage =
     "  --no-motion-hypotheses\n"
     "                     odometry never tries other starts after a poor solve (laser_odometry's\n"
     "                     motion_hypotheses: false)\n"
+    "  --hard-remap       mapping keeps the prediction entirely along weak directions (laser_mapping's\n"
+    "                     soft_remap: false)\n"
     "  --odometry-min-constraint X, --mapping-min-constraint X\n"
     "                     the stages' min_constraint (directions weaker than X are degenerate)\n";
 
@@ -97,6 +99,7 @@ struct Options
   bool deskew = false;
   bool baseline = false;
   bool motion_hypotheses = true;
+  bool soft_remap = true;
   std::optional<bool> reject_occluded;
   std::optional<double> occlusion_continuity;
   std::size_t keep_every = 1;
@@ -298,6 +301,8 @@ bool parse(int argc, char** argv, Options& o)
       o.baseline = true;
     else if (arg == "--no-motion-hypotheses")
       o.motion_hypotheses = false;
+    else if (arg == "--hard-remap")
+      o.soft_remap = false;
     else if (arg == "--reject-occluded")
     {
       std::string onoff;
@@ -445,6 +450,7 @@ int main(int argc, char** argv)
     config.odometry.nearby_elevation_deg = *opt.nearby_elevation_deg;
   }
   config.odometry.motion_hypotheses = config.odometry.motion_hypotheses && opt.motion_hypotheses;
+  config.mapping.soft_remap = config.mapping.soft_remap && opt.soft_remap;
   if (opt.reject_occluded)
   {
     config.registration.reject_occluded = *opt.reject_occluded;

@@ -163,6 +163,7 @@ std::map<std::string, Defaults> structDefaults()
       { "outer_iterations", str(m.outer_iterations) },
       { "plane_neighbours", str(m.plane_neighbours) },
       { "degeneracy_remap", str(m.degeneracy_remap) },
+      { "soft_remap", str(m.soft_remap) },
       { "deskew_first_late", str(m.deskew_first_late) },
       { "eviction_radius", str(m.eviction_radius) },
       { "threads", str(m.threads) },

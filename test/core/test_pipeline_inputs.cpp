@@ -316,22 +316,32 @@ TEST(PipelineInputsTest, PipelinesShareNoState)
 // A hand-held VLP-16 walk down the simulated corridor (3 s). Mapping finds one or two weak directions in
 // nearly every frame (measured: height coupled with pitch, and roll: the 16 beams see little floor and
 // ceiling), so with the all-or-nothing fallback every frame keeps the whole prediction and the estimate
-// is lost; remapping keeps the prediction only along the weak directions. Measured (seed 1): final error
-// with remapping 0.10 m (28 of 30 frames remapped), without 4.06 m (28 degraded).
+// is lost; remapping keeps the prediction only along the weak directions, entirely (hard) or in part
+// (soft, the default). Measured (seed 1): final error all-or-nothing 4.06 m, hard 0.10 m, soft 0.20 m.
+// On this one walk hard is better; over the randomized office and stairwell families soft halves the error
+// (docs/accuracy_families.md), so the bounds here keep both far from the fallback.
 TEST(PipelineInputsTest, CorridorRemappingKeepsOnlyTheWeakDirection)
 {
   const SensorModel sensor = ts::preset("VLP16");
   const sim::Scene scene = sim::corridorScene(1);
   const sim::PoseFunction walk = sim::handHeld(sim::HandHeldOptions());
   constexpr int kCorridorSweeps = 30;
-  double final_error[2] = { 0.0, 0.0 };
-  std::size_t remapped[2] = { 0, 0 }, degraded[2] = { 0, 0 };
-  for (const bool remap : { false, true })
+  enum Mode
+  {
+    kFallback,
+    kHard,
+    kSoft
+  };
+  const char* const names[] = { "all-or-nothing", "hard remap", "soft remap" };
+  double final_error[3] = { 0.0, 0.0, 0.0 };
+  std::size_t remapped[3] = { 0, 0, 0 }, degraded[3] = { 0, 0, 0 };
+  for (const Mode mode : { kFallback, kHard, kSoft })
   {
     PipelineConfig config = pipelineConfig();
     config.odometry.deskew = true;
-    config.odometry.degeneracy_remap = remap;
-    config.mapping.degeneracy_remap = remap;
+    config.odometry.degeneracy_remap = mode != kFallback;
+    config.mapping.degeneracy_remap = mode != kFallback;
+    config.mapping.soft_remap = mode == kSoft;
     Pipeline pipeline(config);
     const Eigen::Isometry3d first_end = walk(kPeriod);
     for (int k = 0; k < kCorridorSweeps; ++k)
@@ -343,9 +353,9 @@ TEST(PipelineInputsTest, CorridorRemappingKeepsOnlyTheWeakDirection)
           scene, sensor, [&](double t) { return walk(start + t); }, options);
       const PipelineOutput out = pipeline.process(cloud, start + kPeriod, true, true);
       ASSERT_EQ(out.status, PipelineStatus::kOk);
-      remapped[remap] += out.mapping.status == MappingStatus::kRemapped;
-      degraded[remap] += out.mapping.status == MappingStatus::kDegraded;
-      if (remap && out.mapping.status == MappingStatus::kRemapped)
+      remapped[mode] += out.mapping.status == MappingStatus::kRemapped;
+      degraded[mode] += out.mapping.status == MappingStatus::kDegraded;
+      if (mode != kFallback && out.mapping.status == MappingStatus::kRemapped)
       {
         // Reported directions: unit 6-vectors, weaker than min_constraint.
         ASSERT_FALSE(out.mapping.degenerate.empty());
@@ -354,23 +364,27 @@ TEST(PipelineInputsTest, CorridorRemappingKeepsOnlyTheWeakDirection)
           EXPECT_NEAR(d.rotation.squaredNorm() + d.translation.squaredNorm(), 1.0, 1e-9);
           EXPECT_LT(d.eigenvalue, config.mapping.min_constraint);
         }
-        if (k % 10 == 5)
+        if (mode == kSoft && k % 10 == 5)
         {
           std::printf("[ measured ] corridor sweep %d: mapping degenerate along %s\n", k,
                       describe(out.mapping.degenerate).c_str());
         }
       }
       const Pose truth = ts::toPose(first_end.inverse() * walk(start + kPeriod));
-      final_error[remap] = ts::translationError(out.mapping.pose, truth);
+      final_error[mode] = ts::translationError(out.mapping.pose, truth);
     }
+    std::printf("[ measured ] corridor walk, %s: final error %.3f m (%zu remapped, %zu degraded)\n", names[mode],
+                final_error[mode], remapped[mode], degraded[mode]);
   }
-  std::printf("[ measured ] corridor walk: final error remap off %.3f m (%zu degraded), on %.3f m (%zu remapped)\n",
-              final_error[0], degraded[0], final_error[1], remapped[1]);
-  EXPECT_GT(degraded[0], kCorridorSweeps / 2u);
-  EXPECT_GT(remapped[1], kCorridorSweeps / 2u);
-  EXPECT_EQ(degraded[1], 0u);
-  EXPECT_LT(final_error[1], 0.15);
-  EXPECT_LT(final_error[1], 0.5 * final_error[0]);
+  EXPECT_GT(degraded[kFallback], kCorridorSweeps / 2u);
+  for (const Mode mode : { kHard, kSoft })
+  {
+    EXPECT_GT(remapped[mode], kCorridorSweeps / 2u) << names[mode];
+    EXPECT_EQ(degraded[mode], 0u) << names[mode];
+    EXPECT_LT(final_error[mode], 0.5 * final_error[kFallback]) << names[mode];
+  }
+  EXPECT_LT(final_error[kHard], 0.15);
+  EXPECT_LT(final_error[kSoft], 0.3);
 }
 
 }  // namespace aloam

@@ -69,6 +69,10 @@ struct LaserMappingConfig
   /// Degeneracy per direction (see LaserOdometryConfig::degeneracy_remap): the prediction is kept only
   /// along the directions weaker than min_constraint. false: any weak direction keeps the whole prediction.
   bool degeneracy_remap = true;
+  /// With degeneracy_remap, a weak direction keeps the share eigenvalue / min_constraint of the solve's
+  /// step instead of none (PoseProblem::remap). Mapping only: on the odometry, one poor sweep's weak
+  /// directions are not weak enough to be cut by it.
+  bool soft_remap = true;
   /// More degenerate directions than this: the whole prediction is kept (see MatchSolveOptions::max_degenerate).
   int max_degenerate_directions = 3;
   double eviction_radius = 1000.0;  ///< cubes farther than this from the robot are dropped (m); <= 0 keeps all

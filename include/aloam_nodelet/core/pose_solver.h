@@ -52,7 +52,8 @@ struct Degeneracy
   Eigen::Matrix<double, 6, 1> eigenvalues = Eigen::Matrix<double, 6, 1>::Zero();       ///< ascending
   Eigen::Matrix<double, 6, 6> eigenvectors = Eigen::Matrix<double, 6, 6>::Identity();  ///< columns, scaled tangent
   double lever_arm = 10.0;
-  int degenerate = 0;  ///< eigenvalues below the threshold (the first `degenerate` columns)
+  double threshold = 0.0;  ///< eigenvalues below it are degenerate
+  int degenerate = 0;      ///< eigenvalues below the threshold (the first `degenerate` columns)
   Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();  ///< the pose's rotation it was taken at
 
   double smallest() const { return eigenvalues[0]; }
@@ -106,7 +107,9 @@ public:
   /// Solution remapping (Zhang, Kaess & Singh, ICRA 2016): keeps the step from `prior` to the current pose
   /// only along the well-constrained directions of `degeneracy` and the prior along the degenerate ones.
   /// The step is taken in the scaled tangent at `prior` (rotation Log(q q_prior^-1), translation t - t_prior).
-  void remap(const Pose& prior, const Degeneracy& degeneracy);
+  /// `soft`: a degenerate direction keeps the share eigenvalue / threshold of its step instead of none, as a
+  /// prior along it would that tops its constraint up to the threshold (weak but real constraints count).
+  void remap(const Pose& prior, const Degeneracy& degeneracy, bool soft = false);
 
 private:
   /// The terms of every match at (q, t), robustified with `huber_delta`, summed in blocks of a fixed size
@@ -137,6 +140,8 @@ struct MatchSolveOptions
   /// Solution remapping: after every solve, keep the pose from before the solve along degenerate
   /// directions (PoseProblem::remap). Off: the solves run unchanged and only the last is analysed.
   bool remap = false;
+  /// With remapping, degenerate directions keep part of the solve's step (PoseProblem::remap, `soft`).
+  bool soft_remap = false;
   /// With remapping, a solve with more degenerate directions than this keeps the prior along all six: so
   /// few constrained directions come from broken input (one point repeated, a handful of matches) more
   /// often than from geometry (a corridor leaves 1, an open floor 3).
@@ -243,7 +248,7 @@ MatchSolveResult matchAndSolve(Pose& pose, std::size_t line_points, std::size_t 
         {
           weak.degenerate = 6;  // too little constrained to trust: nothing of the solve is kept
         }
-        problem.remap(before, weak);
+        problem.remap(before, weak, options.soft_remap && weak.degenerate < 6);
         result.remapped = weak.degenerate < 6;
       }
     }
