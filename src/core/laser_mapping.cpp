@@ -378,6 +378,19 @@ void LaserMapping::updateMap(MappingResult& result)
   result.cubes = map_.cubeCount();
 }
 
+void LaserMapping::rebuildMap(const std::vector<MapSweep>& sweeps, const Pose& change)
+{
+  map_.clear();
+  const Cloud none;
+  for (const MapSweep& sweep : sweeps)
+  {
+    insertClouds(sweep.corners ? *sweep.corners : none, sweep.surfs ? *sweep.surfs : none, sweep.pose);
+  }
+  correction_ = change * correction_;
+  pending_pose_ = change * pending_pose_;
+  prepareSubmap(map_.indexOf(pending_pose_.t));
+}
+
 void LaserMapping::loadMap(const Cloud& corners, const Cloud& surfs)
 {
   reset();

@@ -40,6 +40,7 @@ Pipeline::Pipeline(const PipelineConfig& config)
   , odometry_(withBeamTable(config), executor_)
   , mapping_(config.mapping, executor_)
   , stamps_(config.stamps)
+  , loop_(config.loop_closure ? std::make_unique<LoopClosure>(config.loop) : nullptr)
 {
 }
 
@@ -48,6 +49,10 @@ void Pipeline::reset()
   odometry_.reset();
   mapping_.reset();
   stamps_.reset();
+  if (loop_)
+  {
+    loop_->reset();
+  }
 }
 
 bool Pipeline::track(const Cloud& cloud, double stamp, bool has_ring, bool has_time, PipelineOutput& out)
@@ -63,6 +68,10 @@ bool Pipeline::track(const Cloud& cloud, double stamp, bool has_ring, bool has_t
   {
     odometry_.reset();
     mapping_.reset();
+    if (loop_)
+    {
+      loop_->reset();
+    }
   }
   if (action.restart_motion)
   {
@@ -115,6 +124,19 @@ PipelineOutput Pipeline::process(const Cloud& cloud, double stamp, bool has_ring
   odometry_.indexLast();
   mapping_.updateMap(out.mapping);
   out.timings.update_ms = msSince(start);
+  if (loop_ && !out.odometry.distorted)
+  {
+    start = Clock::now();
+    out.loop = loop_->addFrame(out.mapping.stamp, out.mapping.pose, mapping_.registeredCorners(),
+                               mapping_.registeredSurfs(), out.odometry.full.get());
+    if (out.loop.optimized)
+    {
+      mapping_.rebuildMap(loop_->mapSweeps(), out.loop.correction);
+      out.mapping.pose = out.loop.correction * out.mapping.pose;
+      out.mapping.correction = mapping_.correction();
+    }
+    out.timings.loop_ms = msSince(start);
+  }
   out.status = PipelineStatus::kOk;
   return out;
 }

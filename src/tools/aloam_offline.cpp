@@ -38,6 +38,7 @@ constexpr const char* kUsage =
     "                     [--tum OUT.tum] [--map OUT.pcd] [--deskew] [--minimum-range M] [--max-frames N]\n"
     "                     [--keep-every N] [--baseline] [--odometry-trajectory OUT.txt]\n"
     "                     [--nearby-elevation-deg DEG] [--save-map OUT.pcd] [--start-frame N]\n"
+    "                     [--loop-closure] [--loops OUT.tsv] [--min-loop-separation S]\n"
     "       aloam_offline (--kitti DIR | --bag FILE --topic TOPIC) --sensor PRESET --trajectory OUT.txt\n"
     "                     --localize MAP.pcd [--initial-pose \"x y z roll pitch yaw\"] [--global]\n"
     "                     [--localization-log OUT.txt] [--map-after OUT.pcd] [--start-frame N]\n"
@@ -50,6 +51,11 @@ constexpr const char* kUsage =
     "  --map OUT.pcd      the feature map at the end (binary PCD, x y z intensity time ring)\n"
     "  --save-map OUT.pcd the map for localization: PCD of x y z label (1 edge, 2 plane) + OUT.pcd.yaml\n"
     "  --start-frame N    begin at frame N (odometry starts there)\n"
+    "  --loop-closure     close loops (keyframes, place search, verification, pose graph): --trajectory,\n"
+    "                     --map and --save-map then hold the corrected result\n"
+    "  --loops OUT.tsv    every loop tried: keyframes, stamps, source, accepted, reason, fitness, correction\n"
+    "  --min-loop-separation S\n"
+    "                     no loop between keyframes closer than S seconds or S metres of path (default 30)\n"
     "  --localize MAP.pcd localize every sweep in MAP (never changed) instead of mapping; --trajectory then\n"
     "                     holds the map <- lidar pose of every frame from --start-frame (the last known one\n"
     "                     while no pose is known)\n"
@@ -93,7 +99,9 @@ constexpr double kTrajectorySpacing = 1.0;
 struct Options
 {
   std::string kitti_dir, bag_file, topic, sensor, trajectory, tum, map, odometry_trajectory;
-  std::string save_map, localize, initial_pose, localization_log, map_after;
+  std::string save_map, localize, initial_pose, localization_log, map_after, loops;
+  bool loop_closure = false;
+  std::optional<double> min_loop_separation;
   bool global = false;
   std::size_t start_frame = 0;
   bool deskew = false;
@@ -248,6 +256,28 @@ void showProgress(std::size_t done, std::size_t total, double seconds, bool tty)
 
 int localize(const Options& opt, const aloam::PipelineConfig& config, FrameSource& source, std::size_t end);
 
+/// One row per loop tried: target and current keyframe, their stamps, how it was found, the verdict and
+/// its figures.
+void writeLoops(const std::string& path, const aloam::LoopClosure& loops)
+{
+  std::ofstream out(path);
+  if (!out)
+  {
+    throw std::runtime_error("cannot write " + path);
+  }
+  out << "from\tto\tfrom_stamp\tto_stamp\tsource\taccepted\tinlier_share\tmean_residual_m\tdescriptor_distance\t"
+         "correction_m\tcorrection_deg\treason\n";
+  out << std::fixed;
+  for (const aloam::LoopRecord& r : loops.history())
+  {
+    out << r.from << "\t" << r.to << "\t" << std::setprecision(6) << r.from_stamp << "\t" << r.to_stamp << "\t"
+        << (r.source == aloam::LoopSource::kNearby ? "nearby" : "descriptor") << "\t" << (r.accepted ? 1 : 0) << "\t"
+        << std::setprecision(3) << r.fitness.inlier_share << "\t" << r.fitness.mean_residual << "\t"
+        << r.descriptor_distance << "\t" << r.correction_m << "\t" << r.correction_rad * 180.0 / M_PI << "\t"
+        << (r.accepted ? "accepted" : r.reason) << "\n";
+  }
+}
+
 bool parse(int argc, char** argv, Options& o)
 {
   for (int i = 1; i < argc; ++i)
@@ -297,6 +327,15 @@ bool parse(int argc, char** argv, Options& o)
     }
     else if (arg == "--deskew")
       o.deskew = true;
+    else if (arg == "--loop-closure")
+      o.loop_closure = true;
+    else if (arg == "--loops")
+      value(o.loops);
+    else if (arg == "--min-loop-separation")
+    {
+      value(number);
+      o.min_loop_separation = std::stod(number);
+    }
     else if (arg == "--baseline")
       o.baseline = true;
     else if (arg == "--no-motion-hypotheses")
@@ -388,6 +427,14 @@ bool parse(int argc, char** argv, Options& o)
   {
     throw std::invalid_argument("--localize does not map: no --map or --save-map");
   }
+  if (!o.loop_closure && (!o.loops.empty() || o.min_loop_separation))
+  {
+    throw std::invalid_argument("--loops and --min-loop-separation need --loop-closure");
+  }
+  if (!o.localize.empty() && o.loop_closure)
+  {
+    throw std::invalid_argument("--localize does not map: no --loop-closure");
+  }
   if (!o.localize.empty() && o.initial_pose.empty() && !o.global)
   {
     throw std::invalid_argument("--localize needs --initial-pose or --global");
@@ -459,6 +506,12 @@ int main(int argc, char** argv)
   {
     config.registration.occlusion_continuity = *opt.occlusion_continuity;
   }
+  config.loop_closure = opt.loop_closure;
+  config.loop.matching = config.mapping;
+  if (opt.min_loop_separation)
+  {
+    config.loop.min_loop_separation_time = config.loop.min_loop_separation_path = *opt.min_loop_separation;
+  }
 
   std::unique_ptr<FrameSource> source;
   try
@@ -500,12 +553,22 @@ int main(int argc, char** argv)
   std::vector<double> registration_ms, odometry_ms, mapping_ms, update_ms, pose_ms, total_ms;
   std::size_t rejected = 0, degraded_odometry = 0, degraded_mapping = 0, remapped_odometry = 0, remapped_mapping = 0;
   std::size_t hypotheses_tried = 0, hypotheses_kept = 0;
-  std::vector<double> inlier_shares;
+  std::vector<double> inlier_shares, loop_ms;
+  // With loop closure: each frame's pose relative to the newest keyframe when it was mapped, so that the
+  // saved trajectory follows the keyframes wherever the pose graph moved them later.
+  struct Anchor
+  {
+    std::size_t keyframe = 0;
+    aloam::Pose relative;
+    bool set = false;
+  };
+  std::vector<Anchor> anchors;
   Frame frame;
   const bool tty = isatty(fileno(stderr));
   const auto start = std::chrono::steady_clock::now();
   for (std::size_t i = opt.start_frame; i < end; ++i)
   {
+    Anchor anchor;
     aloam::Pose pose = trajectory.empty() ? aloam::Pose() : aloam::Pose(trajectory.back());
     aloam::Pose odometry_pose = odometry_trajectory.empty() ? aloam::Pose() : aloam::Pose(odometry_trajectory.back());
     if (source->read(i, frame))
@@ -531,6 +594,21 @@ int main(int argc, char** argv)
         {
           inlier_shares.push_back(out.odometry.inlier_share);
         }
+        if (const aloam::LoopClosure* loops = pipeline.loopClosure(); loops && !loops->keyframes().empty())
+        {
+          loop_ms.push_back(out.timings.loop_ms);
+          anchor.keyframe = loops->keyframeAt(out.mapping.stamp);
+          anchor.relative = loops->keyframes()[anchor.keyframe].pose.inverse() * pose;
+          anchor.set = true;
+          for (const aloam::LoopRecord& r : out.loop.tried)
+          {
+            if (r.accepted)
+            {
+              std::cerr << (tty ? "\n" : "") << "loop closed: frame " << i << ", keyframe " << r.to << " to " << r.from
+                        << " (" << r.correction_m << " m, graph " << out.loop.graph.ms << " ms)\n";
+            }
+          }
+        }
         if (std::getenv("ALOAM_OFFLINE_VERBOSE"))
         {
           std::cerr << "frame " << i << " odometry status " << static_cast<int>(out.odometry.status) << " inliers "
@@ -547,6 +625,11 @@ int main(int argc, char** argv)
     {
       ++rejected;
     }
+    if (!anchor.set && !anchors.empty())
+    {
+      anchor = anchors.back();  // a rejected frame repeats the last pose
+    }
+    anchors.push_back(anchor);
     trajectory.push_back(pose.isometry());
     odometry_trajectory.push_back(odometry_pose.isometry());
     stamps.push_back(frame.stamp);
@@ -554,10 +637,27 @@ int main(int argc, char** argv)
                  std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), tty);
   }
 
+  const aloam::LoopClosure* loops = pipeline.loopClosure();
+  if (loops)
+  {
+    for (std::size_t i = 0; i < trajectory.size(); ++i)
+    {
+      if (anchors[i].set)
+      {
+        trajectory[i] = (loops->keyframes()[anchors[i].keyframe].pose * anchors[i].relative).isometry();
+      }
+    }
+  }
   try
   {
     aloam::eval::writeKittiPoses(opt.trajectory, trajectory);
-    std::cout << "trajectory: " << opt.trajectory << " (" << trajectory.size() << " poses)\n";
+    std::cout << "trajectory: " << opt.trajectory << " (" << trajectory.size() << " poses"
+              << (loops ? ", loop-corrected" : "") << ")\n";
+    if (loops && !opt.loops.empty())
+    {
+      writeLoops(opt.loops, *loops);
+      std::cout << "loops: " << opt.loops << "\n";
+    }
     if (!opt.odometry_trajectory.empty())
     {
       aloam::eval::writeKittiPoses(opt.odometry_trajectory, odometry_trajectory);
@@ -618,6 +718,15 @@ int main(int argc, char** argv)
   std::cout << "to the pose:  " << summary(pose_ms) << "  (registration + odometry + mapping)\n";
   std::cout << "map update:   " << summary(update_ms) << "  (after the pose: indexing, map insertion)\n";
   std::cout << "total:        " << summary(total_ms) << "\n";
+  if (loops)
+  {
+    const aloam::LoopClosureStats ls = loops->stats();
+    std::cout << "loop closure: " << ls.keyframes << " keyframes (" << ls.cloud_bytes / 1024 << " KiB of clouds), "
+              << ls.tried << " loops tried, " << ls.accepted << " accepted, " << ls.rejected << " rejected, "
+              << ls.optimizations << " graph solves\n";
+    std::cout << "loop work:    " << summary(loop_ms)
+              << "  (after the pose: keyframe, verification, graph, map rebuild)\n";
+  }
   return rejected == frames ? 1 : 0;
 }
 

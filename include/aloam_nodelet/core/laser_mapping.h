@@ -115,6 +115,13 @@ struct MatchFitness
   double mean_residual = 0.0;  ///< mean distance of the matched points to their line or plane (m)
 };
 
+/// A sweep's clouds (sensor frame) at its pose in the map (LaserMapping::rebuildMap).
+struct MapSweep
+{
+  std::shared_ptr<const Cloud> corners, surfs;
+  Pose pose;  ///< map <- sensor
+};
+
 class LaserMapping
 {
 public:
@@ -144,6 +151,11 @@ public:
   const CubeMap& map() const { return map_; }
   std::size_t totalEvictedCubes() const { return evicted_total_; }
   void reset();
+
+  /// Loop closure: replaces the map by these sweeps at their (corrected) poses, merged into voxels as the
+  /// map merges every sweep, and moves the frame last added (and so the next prediction) by `change`
+  /// (corrected map <- map before): the correction becomes change * correction. Call after updateMap().
+  void rebuildMap(const std::vector<MapSweep>& sweeps, const Pose& change);
 
   // Localization in a saved map (see Localizer). None of these is used while mapping.
 

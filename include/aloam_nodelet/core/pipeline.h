@@ -5,6 +5,7 @@
 
 #include "aloam_nodelet/core/laser_mapping.h"
 #include "aloam_nodelet/core/laser_odometry.h"
+#include "aloam_nodelet/core/loop_closure.h"
 #include "aloam_nodelet/core/scan_registration.h"
 #include "aloam_nodelet/core/stamp_check.h"
 
@@ -16,6 +17,9 @@ struct PipelineConfig
   LaserOdometryConfig odometry;
   LaserMappingConfig mapping;
   StampCheckConfig stamps;  ///< the time policy the nodelets apply (aloam::actionFor)
+  /// Loop closure after each map update (LoopClosure); off: the pipeline is the three LOAM stages alone.
+  bool loop_closure = false;
+  LoopClosureConfig loop;
 };
 
 enum class PipelineStatus
@@ -34,9 +38,10 @@ struct PipelineTimings
   double odometry_ms = 0.0;
   double mapping_ms = 0.0;
   double update_ms = 0.0;
+  double loop_ms = 0.0;  ///< loop closure: keyframe, verification, graph and map rebuild (after the pose)
 
   double latencyPathMs() const { return registration_ms + odometry_ms + mapping_ms; }
-  double totalMs() const { return latencyPathMs() + update_ms; }
+  double totalMs() const { return latencyPathMs() + update_ms + loop_ms; }
 };
 
 struct PipelineOutput
@@ -45,7 +50,8 @@ struct PipelineOutput
   StampVerdict stamp_verdict = StampVerdict::kFirst;
   std::shared_ptr<const FeatureSet> features;
   OdometryFrame odometry;
-  MappingResult mapping;
+  MappingResult mapping;  ///< its pose is moved into the corrected map when a loop closed on this frame
+  LoopUpdate loop;
   PipelineTimings timings;
 };
 
@@ -69,6 +75,8 @@ public:
   const ScanRegistration& registration() const { return registration_; }
   const LaserOdometry& odometry() const { return odometry_; }
   const LaserMapping& mapping() const { return mapping_; }
+  /// Null unless PipelineConfig::loop_closure.
+  const LoopClosure* loopClosure() const { return loop_.get(); }
   const std::shared_ptr<Executor>& executor() const { return executor_; }
 
 private:
@@ -77,6 +85,7 @@ private:
   LaserOdometry odometry_;
   LaserMapping mapping_;
   StampCheck stamps_;
+  std::unique_ptr<LoopClosure> loop_;
 
   /// The time policy, registration and odometry's track(); false if the sweep was dropped or rejected.
   bool track(const Cloud& cloud, double stamp, bool has_ring, bool has_time, PipelineOutput& out);

@@ -1,0 +1,456 @@
+#include "aloam_nodelet/core/loop_closure.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <numeric>
+
+#include "aloam_nodelet/core/voxel_filter.h"
+
+namespace aloam
+{
+namespace
+{
+double rotationAngle(const Eigen::Quaterniond& q)
+{
+  return Eigen::AngleAxisd(q.normalized()).angle();
+}
+
+Pose yawed(double yaw, const Eigen::Quaterniond& level, const Eigen::Vector3d& t)
+{
+  return Pose(Eigen::Quaterniond(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ())) * level, t);
+}
+
+std::string format(const char* text, double a, double b)
+{
+  char buffer[160];
+  std::snprintf(buffer, sizeof(buffer), text, a, b);
+  return buffer;
+}
+
+std::size_t cloudBytes(const std::shared_ptr<const Cloud>& cloud)
+{
+  return cloud ? cloud->size() * sizeof(Point) : 0;
+}
+}  // namespace
+
+LoopClosure::LoopClosure(LoopClosureConfig config) : config_(std::move(config)) {}
+
+void LoopClosure::setConfig(const LoopClosureConfig& config)
+{
+  config_ = config;
+  dropOldClouds();
+}
+
+void LoopClosure::reset()
+{
+  keyframes_.clear();
+  graph_.clear();
+  history_.clear();
+  loop_edges_.clear();
+  last_input_ = Pose();
+  last_loop_path_ = -1.0;
+  optimizations_ = 0;
+  last_optimize_ms_ = 0.0;
+}
+
+bool LoopClosure::isKeyframe(const Pose& pose) const
+{
+  if (keyframes_.empty())
+  {
+    return true;
+  }
+  const Pose step = last_input_.inverse() * pose;
+  return step.t.norm() >= config_.keyframe_distance || rotationAngle(step.q) >= config_.keyframe_angle;
+}
+
+bool LoopClosure::separated(const Keyframe& a, const Keyframe& b) const
+{
+  return std::fabs(a.stamp - b.stamp) >= config_.min_loop_separation_time &&
+         std::fabs(a.path - b.path) >= config_.min_loop_separation_path;
+}
+
+void LoopClosure::dropOldClouds()
+{
+  std::size_t with = 0;
+  for (auto it = keyframes_.rbegin(); it != keyframes_.rend(); ++it)
+  {
+    if (it->corners || it->surfs)
+    {
+      if (++with > config_.max_keyframe_clouds)
+      {
+        it->corners.reset();
+        it->surfs.reset();
+      }
+    }
+  }
+}
+
+LoopClosureStats LoopClosure::stats() const
+{
+  LoopClosureStats s;
+  s.keyframes = keyframes_.size();
+  for (const Keyframe& k : keyframes_)
+  {
+    s.keyframes_with_clouds += k.corners || k.surfs;
+    s.cloud_bytes += cloudBytes(k.corners) + cloudBytes(k.surfs);
+  }
+  s.tried = history_.size();
+  s.accepted = static_cast<std::size_t>(
+      std::count_if(history_.begin(), history_.end(), [](const LoopRecord& r) { return r.accepted; }));
+  s.rejected = s.tried - s.accepted;
+  s.optimizations = optimizations_;
+  s.last_optimize_ms = last_optimize_ms_;
+  return s;
+}
+
+std::vector<MapSweep> LoopClosure::mapSweeps() const
+{
+  std::vector<MapSweep> sweeps;
+  sweeps.reserve(keyframes_.size());
+  for (const Keyframe& k : keyframes_)
+  {
+    if (k.corners || k.surfs)
+    {
+      sweeps.push_back(MapSweep{ k.corners, k.surfs, k.pose });
+    }
+  }
+  return sweeps;
+}
+
+std::size_t LoopClosure::keyframeAt(double stamp) const
+{
+  const auto it = std::upper_bound(keyframes_.begin(), keyframes_.end(), stamp,
+                                   [](double s, const Keyframe& k) { return s < k.stamp; });
+  return it == keyframes_.begin() ? 0 : static_cast<std::size_t>(it - keyframes_.begin()) - 1;
+}
+
+LoopUpdate LoopClosure::addFrame(double stamp, const Pose& pose, const Cloud& corners, const Cloud& surfs,
+                                 const Cloud* sweep)
+{
+  LoopUpdate update;
+  if (!pose.isFinite() || !isKeyframe(pose))
+  {
+    return update;
+  }
+  update.keyframe = true;
+  Keyframe k;
+  k.stamp = stamp;
+  auto c = std::make_shared<Cloud>();
+  auto s = std::make_shared<Cloud>();
+  voxelDownsample(corners, config_.keyframe_corner_leaf, *c);
+  voxelDownsample(surfs, config_.keyframe_surf_leaf, *s);
+  k.corners = c;
+  k.surfs = s;
+  k.descriptor = sweep ? ScanContext::compute(*sweep, Cloud(), pose, config_.descriptor)
+                       : ScanContext::compute(*c, *s, pose, config_.descriptor);
+  if (keyframes_.empty())
+  {
+    k.pose = pose;
+    graph_.addNode(pose);
+  }
+  else
+  {
+    // The odometry edge: the step since the last keyframe as mapping measured it.
+    const Pose step = last_input_.inverse() * pose;
+    const Keyframe& last = keyframes_.back();
+    k.path = last.path + step.t.norm();
+    k.pose = last.pose * step;
+    graph_.addNode(k.pose);
+    PoseGraphEdge edge;
+    edge.from = keyframes_.size() - 1;
+    edge.to = keyframes_.size();
+    edge.measured = step;
+    const double length = step.t.norm();
+    edge.sigma.head<3>().setConstant(config_.odometry_sigma_translation * std::max(length, 0.1));
+    edge.sigma.tail<3>().setConstant(config_.odometry_sigma_rotation * std::max(length, 0.1));
+    graph_.addEdge(edge);
+  }
+  last_input_ = pose;
+  keyframes_.push_back(std::move(k));
+  dropOldClouds();
+
+  const Keyframe& current = keyframes_.back();
+  if (last_loop_path_ >= 0.0 && current.path - last_loop_path_ < config_.loop_spacing)
+  {
+    return update;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  std::vector<LoopRecord> found = candidates();
+  for (LoopRecord& record : found)
+  {
+    verify(record);
+    update.tried.push_back(record);
+    history_.push_back(record);
+    if (record.accepted)
+    {
+      break;  // one loop per keyframe
+    }
+  }
+  update.verify_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  if (update.tried.empty() || !update.tried.back().accepted)
+  {
+    return update;
+  }
+
+  const LoopRecord& loop = update.tried.back();
+  PoseGraphEdge edge;
+  edge.from = loop.from;
+  edge.to = loop.to;
+  edge.measured = loop.relative;
+  edge.loop = true;
+  const double residual = loop.fitness.mean_residual;
+  edge.sigma.head<3>().setConstant(std::max(config_.loop_sigma_translation, residual));
+  edge.sigma.tail<3>().setConstant(std::max(config_.loop_sigma_rotation, 0.1 * residual));
+  graph_.addEdge(edge);
+  loop_edges_.emplace_back(graph_.edges().size() - 1, history_.size() - 1);
+  PoseGraphOptions options;
+  options.max_iterations = config_.graph_iterations;
+  options.outlier_error = config_.loop_outlier_error;
+  options.loop_loss_scale = config_.loop_loss_scale;
+  update.graph = graph_.optimize(options);
+  for (const std::size_t disabled : update.graph.disabled)
+  {
+    for (const auto& [edge_index, record] : loop_edges_)
+    {
+      if (edge_index == disabled)
+      {
+        history_[record].accepted = false;
+        history_[record].reason = "inconsistent with the other loops (left out of the pose graph)";
+      }
+    }
+  }
+  last_loop_path_ = current.path;
+  ++optimizations_;
+  last_optimize_ms_ = update.graph.ms;
+  if (!update.graph.solved)
+  {
+    return update;
+  }
+  const Pose before = keyframes_.back().pose;
+  for (std::size_t i = 0; i < keyframes_.size(); ++i)
+  {
+    keyframes_[i].pose = graph_.pose(i);
+  }
+  update.optimized = true;
+  update.correction = keyframes_.back().pose * before.inverse();
+  // The caller moves its map by `correction`: the newest keyframe's input pose becomes its corrected one.
+  last_input_ = keyframes_.back().pose;
+  return update;
+}
+
+std::vector<LoopRecord> LoopClosure::candidates() const
+{
+  std::vector<LoopRecord> out;
+  const std::size_t current_index = keyframes_.size() - 1;
+  const Keyframe& current = keyframes_.back();
+  auto record = [&](std::size_t target, LoopSource source, double descriptor_distance)
+  {
+    LoopRecord r;
+    r.from = target;
+    r.to = current_index;
+    r.from_stamp = keyframes_[target].stamp;
+    r.to_stamp = current.stamp;
+    r.source = source;
+    r.descriptor_distance = descriptor_distance;
+    return r;
+  };
+
+  // Nearby: the closest keyframe to the current estimate, within a radius that grows with the path
+  // travelled since the last loop (the drift that may have built up).
+  const double since = current.path - std::max(last_loop_path_, 0.0);
+  const double radius = config_.search_radius + config_.search_radius_growth * since;
+  std::size_t nearest = current_index;
+  double nearest_distance = radius;
+  std::vector<std::size_t> eligible;
+  for (std::size_t i = 0; i < current_index; ++i)
+  {
+    const Keyframe& k = keyframes_[i];
+    if (!(k.corners || k.surfs) || !separated(k, current))
+    {
+      continue;
+    }
+    eligible.push_back(i);
+    const double d = (k.pose.t - current.pose.t).norm();
+    if (d <= nearest_distance)
+    {
+      nearest_distance = d;
+      nearest = i;
+    }
+  }
+  if (nearest != current_index)
+  {
+    out.push_back(
+        record(nearest, LoopSource::kNearby, current.descriptor.match(keyframes_[nearest].descriptor).distance));
+  }
+
+  // Descriptor: the closest ring keys, then the full comparison over every sector shift.
+  if (config_.use_descriptor && !eligible.empty() && !current.descriptor.empty())
+  {
+    std::vector<std::pair<float, std::size_t>> by_key;
+    by_key.reserve(eligible.size());
+    for (std::size_t i : eligible)
+    {
+      by_key.emplace_back((keyframes_[i].descriptor.ringKey() - current.descriptor.ringKey()).squaredNorm(), i);
+    }
+    const std::size_t n = std::min<std::size_t>(std::max(config_.descriptor_candidates, 1), by_key.size());
+    std::partial_sort(by_key.begin(), by_key.begin() + n, by_key.end());
+    std::size_t best = current_index;
+    double best_distance = config_.max_descriptor_distance;
+    for (std::size_t j = 0; j < n; ++j)
+    {
+      const double d = current.descriptor.match(keyframes_[by_key[j].second].descriptor).distance;
+      if (d <= best_distance)
+      {
+        best_distance = d;
+        best = by_key[j].second;
+      }
+    }
+    if (best != current_index && best != nearest)
+    {
+      out.push_back(record(best, LoopSource::kDescriptor, best_distance));
+    }
+  }
+  return out;
+}
+
+void LoopClosure::verify(LoopRecord& record) const
+{
+  const Keyframe& current = keyframes_[record.to];
+  const Keyframe& target = keyframes_[record.from];
+
+  // The target's neighbourhood in the corrected map, from keyframes far enough from the current one.
+  Cloud corners, surfs, moved;
+  for (const Keyframe& k : keyframes_)
+  {
+    if (!(k.corners || k.surfs) || !separated(k, current) || (k.pose.t - target.pose.t).norm() > config_.submap_radius)
+    {
+      continue;
+    }
+    for (const bool is_corners : { true, false })
+    {
+      const auto& cloud = is_corners ? k.corners : k.surfs;
+      if (!cloud)
+      {
+        continue;
+      }
+      Cloud& into = is_corners ? corners : surfs;
+      for (const Point& p : cloud->points)
+      {
+        into.points.push_back(transformPoint(k.pose, p));
+      }
+    }
+  }
+  voxelDownsample(corners, config_.matching.corner_leaf_size, moved);
+  corners.swap(moved);
+  voxelDownsample(surfs, config_.matching.surf_leaf_size, moved);
+  surfs.swap(moved);
+  if (static_cast<int>(corners.size()) < config_.matching.min_map_corners ||
+      static_cast<int>(surfs.size()) < config_.matching.min_map_surfs)
+  {
+    record.reason = "target submap too small";
+    return;
+  }
+  LaserMappingConfig matching = config_.matching;
+  matching.threads = 1;
+  LaserMapping mapping(matching);
+  mapping.loadMap(corners, surfs);
+  mapping.setFrozen(true);
+
+  // Where to start: the current estimate for a nearby candidate; for a descriptor candidate, the target's
+  // position turned by the descriptor's yaw.
+  const Eigen::Quaterniond level = levelling(current.pose);
+  Pose centre = current.pose;
+  if (record.source == LoopSource::kDescriptor)
+  {
+    const ScanContextMatch m = current.descriptor.match(target.descriptor);
+    centre = yawed(yawOf(target.pose) + m.yaw, level, target.pose.t);
+  }
+  struct Scored
+  {
+    Pose pose;
+    double score;
+  };
+  std::vector<Scored> coarse;
+  const int n =
+      config_.coarse_step > 0.0 ? static_cast<int>(std::floor(config_.coarse_radius / config_.coarse_step + 1e-9)) : 0;
+  const int m = config_.coarse_yaw_step > 0.0
+                    ? static_cast<int>(std::floor(config_.coarse_yaw / config_.coarse_yaw_step + 1e-9))
+                    : 0;
+  const double centre_yaw = yawOf(centre);
+  for (int i = -n; i <= n; ++i)
+  {
+    for (int j = -n; j <= n; ++j)
+    {
+      for (int y = -m; y <= m; ++y)
+      {
+        const Pose start = yawed(centre_yaw + y * config_.coarse_yaw_step, level,
+                                 centre.t + Eigen::Vector3d(i * config_.coarse_step, j * config_.coarse_step, 0.0));
+        mapping.prepareSubmapAround(start.t);
+        const MatchFitness f =
+            mapping.fitness(*current.corners, *current.surfs, start, 2.0 * config_.inlier_residual, 4);
+        coarse.push_back(Scored{ start, f.inlier_share });
+      }
+    }
+  }
+  const std::size_t keep = std::min<std::size_t>(2, coarse.size());
+  std::partial_sort(coarse.begin(), coarse.begin() + keep, coarse.end(),
+                    [](const Scored& a, const Scored& b) { return a.score > b.score; });
+
+  OdometryFrame frame;
+  frame.stamp = current.stamp;
+  frame.status = OdometryStatus::kOk;
+  frame.corners = current.corners;
+  frame.surfs = current.surfs;
+  bool registered = false;
+  MappingResult best;
+  for (std::size_t i = 0; i < keep; ++i)
+  {
+    mapping.setCorrection(coarse[i].pose);  // frame.pose is the identity: the start is the prediction
+    const MappingResult r = mapping.registerFrame(frame);
+    const MatchFitness f =
+        mapping.fitness(mapping.registeredCorners(), mapping.registeredSurfs(), r.pose, config_.inlier_residual);
+    if (!registered || f.inlier_share > record.fitness.inlier_share)
+    {
+      registered = true;
+      best = r;
+      record.fitness = f;
+    }
+  }
+  record.correction_m = (best.pose.t - current.pose.t).norm();
+  record.correction_rad = rotationAngle(current.pose.q.conjugate() * best.pose.q);
+  const double path = current.path - target.path;
+  const double max_move = config_.max_correction + config_.max_correction_rate * path;
+  const double max_turn = config_.max_correction_angle + config_.max_correction_angle_rate * path;
+  if (best.status != MappingStatus::kOk)
+  {
+    record.reason = best.status == MappingStatus::kMapTooSmall ? "target submap too small"
+                    : best.status == MappingStatus::kRemapped  ? "registration degenerate along some direction"
+                                                               : "registration degraded (too few matches)";
+  }
+  else if (record.fitness.inlier_share < config_.min_inlier_share)
+  {
+    record.reason = format("inlier share %.2f below %.2f", record.fitness.inlier_share, config_.min_inlier_share);
+  }
+  else if (record.fitness.mean_residual > config_.max_mean_residual)
+  {
+    record.reason =
+        format("mean residual %.3f m above %.3f m", record.fitness.mean_residual, config_.max_mean_residual);
+  }
+  else if (record.correction_m > max_move)
+  {
+    record.reason = format("correction %.1f m beyond the drift bound %.1f m", record.correction_m, max_move);
+  }
+  else if (record.correction_rad > max_turn)
+  {
+    record.reason = format("correction %.1f deg beyond the drift bound %.1f deg", record.correction_rad * 180.0 / M_PI,
+                           max_turn * 180.0 / M_PI);
+  }
+  else
+  {
+    record.accepted = true;
+    record.relative = target.pose.inverse() * best.pose;
+  }
+}
+
+}  // namespace aloam
