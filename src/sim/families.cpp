@@ -33,6 +33,16 @@ constexpr double kIssueRecess = 0.25;
 constexpr double kIssueSpeed = 1.4;
 constexpr double kIssueSwayDeg = 10.0;
 constexpr double kIssueBurstDegS = 90.0;
+// Loop families: the loop's size follows from the drawn speed, the drawn number of laps and the duration,
+// within these bounds (so short durations give a small loop driven less than once).
+constexpr double kBlockPerimeterMin = 200.0;  // m, street centerlines round the block
+constexpr double kBlockPerimeterMax = 600.0;
+constexpr double kEightLengthMin = 400.0;  // m, both lobes of the figure-eight
+constexpr double kEightLengthMax = 900.0;
+constexpr double kFloorPerimeterMin = 40.0;  // m, the ring corridor's centerline
+constexpr double kFloorPerimeterMax = 200.0;
+constexpr int kRepetitiveRings = 2;  // rings of identical blocks round the driven ones (beyond the lidar's reach)
+constexpr double kRevisitLapsTarget = 1.2;  // loop_repetitive sizes its loop for about this many laps
 
 const std::vector<std::pair<Family, std::string>>& familyTable()
 {
@@ -44,6 +54,10 @@ const std::vector<std::pair<Family, std::string>>& familyTable()
     { Family::Urban, "urban" },
     { Family::Field, "field" },
     { Family::CorridorIssue23, "corridor_issue23" },
+    { Family::LoopBlock, "loop_block" },
+    { Family::LoopEight, "loop_eight" },
+    { Family::LoopFloor, "loop_floor" },
+    { Family::LoopRepetitive, "loop_repetitive" },
   };
   return table;
 }
@@ -353,6 +367,196 @@ void drawField(Drawer& d, FamilyDraw* out)
   out->field_length_m = distance + kOutdoorMargin;
 }
 
+/// The frontage of the loop families' blocks (buildings, poles, trees, parked cars).
+void drawFacade(Drawer& d, UrbanStreetOptions* facade)
+{
+  facade->building_height_max_m = d.uniform("building_height_max_m", 8.0, 30.0);
+  facade->gap_probability = d.uniform("gap_probability", 0.1, 0.6);
+  facade->car_probability = d.uniform("car_probability", 0.0, 0.6);
+  facade->pole_spacing_min_m = d.uniform("pole_spacing_m", 10.0, 30.0);
+  facade->pole_spacing_max_m = facade->pole_spacing_min_m + 10.0;
+  facade->tree_probability = d.uniform("tree_probability", 0.0, 0.6);
+}
+
+/// A car on the path: speed, corner rounding and a lane offset to the right.
+void drawPathCar(Drawer& d, PathFollowOptions* path, double corner_lo, double corner_hi)
+{
+  path->speed = d.uniform("speed_mps", 6.0, 10.0);
+  path->corner_length_m = d.uniform("corner_length_m", corner_lo, corner_hi);
+  path->lateral_offset_m = -d.uniform("lane_offset_m", 0.0, 0.5);
+  path->height_m = 1.8;
+}
+
+/// Records the laps the motion makes of its (closed) path.
+void recordLaps(Drawer& d, const FamilyDraw& draw, double max_laps)
+{
+  const RoundedPath path(draw.path.waypoints, draw.path.closed, draw.path.corner_length_m);
+  d.derived("path_length_m", path.length(), 0.0, 1e5);
+  d.derived("laps", std::min(max_laps, draw.path.speed * draw.duration_s / path.length()), 0.0, max_laps);
+}
+
+std::vector<Eigen::Vector2d> reversedLoop(std::vector<Eigen::Vector2d> loop)
+{
+  std::reverse(loop.begin() + 1, loop.end());  // same start, the other way round
+  return loop;
+}
+
+void drawLoopBlock(Drawer& d, FamilyDraw* out)
+{
+  out->motion = MotionKind::Path;
+  drawPathCar(d, &out->path, 20.0, 28.0);
+  const double laps = d.uniform("laps_target", 1.5, 2.0);
+  const double aspect = d.uniform("aspect", 0.4, 0.6);  // share of the half perimeter along x
+  const bool clockwise = d.flag("clockwise", 0.5);
+  CityGridOptions& city = out->city;
+  city.street_width_m = d.uniform("street_width_m", 14.0, 18.0);
+  city.outer_block_m = d.uniform("outer_block_m", 30.0, 50.0);
+  drawFacade(d, &city.facade);
+  const double perimeter = d.derived(
+      "perimeter_m", std::clamp(out->path.speed * out->duration_s / laps, kBlockPerimeterMin, kBlockPerimeterMax),
+      kBlockPerimeterMin, kBlockPerimeterMax);
+  const double w = 0.5 * perimeter * aspect;
+  const double h = 0.5 * perimeter - w;
+  city.street_x = { 0.0, w };
+  city.street_y = { 0.0, h };
+  // From the middle of the south street, counterclockwise unless drawn otherwise.
+  const std::vector<Eigen::Vector2d> loop = { Eigen::Vector2d(0.5 * w, 0.0), Eigen::Vector2d(w, 0.0),
+                                              Eigen::Vector2d(w, h), Eigen::Vector2d(0.0, h),
+                                              Eigen::Vector2d(0.0, 0.0) };
+  out->path.waypoints = clockwise ? reversedLoop(loop) : loop;
+  out->path.closed = true;
+  recordLaps(d, *out, 100.0);
+}
+
+void drawLoopEight(Drawer& d, FamilyDraw* out)
+{
+  out->motion = MotionKind::Path;
+  drawPathCar(d, &out->path, 20.0, 28.0);
+  const double laps = d.uniform("laps_target", 1.1, 1.5);
+  const double aspect = d.uniform("aspect", 0.4, 0.6);
+  const bool reverse = d.flag("reverse", 0.5);
+  CityGridOptions& city = out->city;
+  city.street_width_m = d.uniform("street_width_m", 14.0, 18.0);
+  city.outer_block_m = d.uniform("outer_block_m", 30.0, 50.0);
+  drawFacade(d, &city.facade);
+  const double length = d.derived(
+      "eight_length_m", std::clamp(out->path.speed * out->duration_s / laps, kEightLengthMin, kEightLengthMax),
+      kEightLengthMin, kEightLengthMax);
+  const double w = 0.25 * length * aspect;
+  const double h = 0.25 * length - w;
+  city.street_x = { 0.0, w, 2.0 * w };
+  city.street_y = { 0.0, h, 2.0 * h };
+  // Two diagonal blocks touching at the middle crossing (w, h): east across it and round the north-east
+  // block turning left, south across it and round the south-west block turning right.
+  const std::vector<Eigen::Vector2d> eight = {
+    Eigen::Vector2d(0.5 * w, h),       Eigen::Vector2d(w, h),       Eigen::Vector2d(2.0 * w, h),
+    Eigen::Vector2d(2.0 * w, 2.0 * h), Eigen::Vector2d(w, 2.0 * h), Eigen::Vector2d(w, h),
+    Eigen::Vector2d(w, 0.0),           Eigen::Vector2d(0.0, 0.0),   Eigen::Vector2d(0.0, h),
+  };
+  out->path.waypoints = reverse ? reversedLoop(eight) : eight;
+  out->path.closed = true;
+  recordLaps(d, *out, 100.0);
+}
+
+void drawLoopFloor(Drawer& d, FamilyDraw* out)
+{
+  out->motion = MotionKind::Path;
+  PathFollowOptions& path = out->path;
+  path.speed = d.uniform("speed_mps", 1.2, 1.5);
+  const double laps = d.uniform("laps_target", 1.2, 1.5);
+  path.corner_length_m = d.uniform("corner_length_m", 2.0, 3.5);
+  path.height_m = d.uniform("height_m", 1.3, 1.6);
+  path.roll_amplitude_rad = d.uniform("sway_deg", 0.0, 8.0) * kDegToRad;
+  path.yaw_sway_rad = d.uniform("yaw_sway_deg", 0.0, 5.0) * kDegToRad;
+  path.bob_amplitude_m = d.uniform("bob_m", 0.0, 0.05);
+  path.bob_frequency_hz = 1.4 * path.speed;  // steps of about 0.7 m
+  RingFloorOptions& f = out->ring_floor;
+  f.width_m = d.uniform("width_m", 1.8, 3.0);
+  f.height_m = d.uniform("ceiling_m", 2.4, 3.2);
+  f.feature_spacing_m = d.uniform("feature_spacing_m", 3.0, 10.0);
+  f.recess_depth_m = d.uniform("recess_m", 0.1, 0.5);
+  f.room_probability = d.uniform("room_probability", 0.0, 0.5);
+  f.niche_probability = d.uniform("niche_probability", 0.0, 0.3);
+  f.room_depth_m = d.uniform("room_depth_m", 2.5, 5.0);
+  const bool lights = d.flag("lights", 0.7);
+  f.light_spacing_m = d.derived("light_spacing_m", lights ? d.raw(2.5, 5.0) : 0.0, 0.0, 5.0);
+  const double aspect = d.uniform("aspect", 0.35, 0.65);
+  const double perimeter =
+      d.derived("perimeter_m", std::clamp(path.speed * out->duration_s / laps, kFloorPerimeterMin, kFloorPerimeterMax),
+                kFloorPerimeterMin, kFloorPerimeterMax);
+  // The centerline rectangle is (core_x + width) by (core_y + width).
+  f.core_x_m = 0.5 * perimeter * aspect - f.width_m;
+  f.core_y_m = 0.5 * perimeter * (1.0 - aspect) - f.width_m;
+  const bool clockwise = d.flag("clockwise", 0.5);
+  path.waypoints = clockwise ? reversedLoop(ringFloorCenterline(f)) : ringFloorCenterline(f);
+  path.closed = true;
+  recordLaps(d, *out, 100.0);
+}
+
+void drawLoopRepetitive(Drawer& d, FamilyDraw* out)
+{
+  out->motion = MotionKind::Path;
+  drawPathCar(d, &out->path, 20.0, 26.0);
+  CityGridOptions& city = out->city;
+  city.street_x.clear();
+  city.street_y.clear();
+  const double period = d.uniform("block_period_m", 50.0, 80.0);
+  out->block_period_m = period;
+  city.street_width_m = d.uniform("street_width_m", 12.0, 16.0);
+  city.outer_block_m = 0.0;
+  city.identical_blocks = true;
+  drawFacade(d, &city.facade);
+  const bool revisit = d.flag("revisit", 0.5);
+  const double distance = out->path.speed * out->duration_s;
+  int nx = 0;
+  int ny = 0;
+  std::vector<Eigen::Vector2d>& w = out->path.waypoints;
+  w.clear();
+  if (revisit)
+  {
+    // Round a rectangle of blocks sized for about kRevisitLapsTarget laps (at least 1 x 1 block).
+    const int blocks = std::clamp(static_cast<int>(std::floor(distance / (kRevisitLapsTarget * 2.0 * period))), 2, 6);
+    nx = (blocks + 1) / 2;
+    ny = blocks - nx;
+    const double x = nx * period;
+    const double y = ny * period;
+    w = { Eigen::Vector2d(0.5 * period, 0.0), Eigen::Vector2d(x, 0.0), Eigen::Vector2d(x, y), Eigen::Vector2d(0.0, y),
+          Eigen::Vector2d(0.0, 0.0) };
+    out->path.closed = true;
+    d.derived("loop_blocks", blocks, 2, 6);
+  }
+  else
+  {
+    // A serpentine: rows `row_blocks` long, one block apart, joined at alternate ends; it never comes back.
+    nx = d.integer("row_blocks", 2, 4);
+    const double row = nx * period;
+    ny = static_cast<int>(std::ceil((distance + period) / (row + period)));
+    w.push_back(Eigen::Vector2d(0.5 * period, 0.0));
+    for (int j = 0; j <= ny; ++j)
+    {
+      const bool east = j % 2 == 0;
+      w.push_back(Eigen::Vector2d(east ? row : 0.0, j * period));
+      w.push_back(Eigen::Vector2d(east ? row : 0.0, (j + 1) * period));
+    }
+    w.pop_back();  // ends along the last row
+    ny += 1;
+    out->path.closed = false;
+    d.derived("rows", ny, 1, 1e4);
+  }
+  for (int i = -kRepetitiveRings; i <= nx + kRepetitiveRings; ++i)
+  {
+    city.street_x.push_back(i * period);
+  }
+  for (int j = -kRepetitiveRings; j <= ny + kRepetitiveRings; ++j)
+  {
+    city.street_y.push_back(j * period);
+  }
+  if (revisit)
+  {
+    recordLaps(d, *out, 100.0);
+  }
+}
+
 std::string motionName(MotionKind motion)
 {
   switch (motion)
@@ -363,6 +567,8 @@ std::string motionName(MotionKind motion)
       return "handheld";
     case MotionKind::TurnWalk:
       return "turn_walk";
+    case MotionKind::Path:
+      return "path";
   }
   return "?";
 }
@@ -464,6 +670,18 @@ FamilyDraw drawFamily(Family family, unsigned seed, double duration_s)
     case Family::Field:
       drawField(d, &draw);
       break;
+    case Family::LoopBlock:
+      drawLoopBlock(d, &draw);
+      break;
+    case Family::LoopEight:
+      drawLoopEight(d, &draw);
+      break;
+    case Family::LoopFloor:
+      drawLoopFloor(d, &draw);
+      break;
+    case Family::LoopRepetitive:
+      drawLoopRepetitive(d, &draw);
+      break;
   }
   return draw;
 }
@@ -485,6 +703,12 @@ Scene familyScene(const FamilyDraw& draw)
       return urbanStreetWithHill(draw.seed, draw.urban, draw.ground);
     case Family::Field:
       return openFieldScene(draw.seed, draw.field_length_m, draw.field_objects);
+    case Family::LoopBlock:
+    case Family::LoopEight:
+    case Family::LoopRepetitive:
+      return cityGridScene(draw.seed, draw.city);
+    case Family::LoopFloor:
+      return ringFloorScene(draw.seed, draw.ring_floor);
   }
   throw std::invalid_argument("familyScene: unknown family");
 }
@@ -499,6 +723,8 @@ PoseFunction familyMotion(const FamilyDraw& draw)
       return handHeld(draw.walk);
     case MotionKind::TurnWalk:
       return handHeldTurn(draw.turn_walk);
+    case MotionKind::Path:
+      return pathFollow(draw.path);
   }
   throw std::invalid_argument("familyMotion: unknown motion");
 }

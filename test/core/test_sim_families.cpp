@@ -44,7 +44,7 @@ double distanceAlong(const aloam::sim::Scene& scene, const Eigen::Vector3d& orig
 
 TEST(SimFamilies, NamesRoundTrip)
 {
-  ASSERT_EQ(aloam::sim::familyNames().size(), 7u);
+  ASSERT_EQ(aloam::sim::familyNames().size(), 11u);
   for (const std::string& name : aloam::sim::familyNames())
   {
     const auto family = aloam::sim::familyFromName(name);

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "aloam_nodelet/sim/loops.h"
 #include "aloam_nodelet/sim/raycaster.h"
 #include "aloam_nodelet/sim/scenes_extra.h"
 #include "aloam_nodelet/sim/trajectories.h"
@@ -24,9 +25,14 @@ enum class Family
   Urban,            // street with buildings, car or hand-held
   Field,            // open ground with a few objects, car or hand-held
   CorridorIssue23,  // the corridor of issue 23 with its walk (fixed values; the seed varies the rest)
+  LoopBlock,        // a car round an urban block 1.5-2 times (a loop back to the start street)
+  LoopEight,        // a car on a figure-eight round two blocks, across the middle crossing both ways
+  LoopFloor,        // a hand-held walk round the ring corridor of a building floor, 1.2-1.5 laps
+  LoopRepetitive,   // a car in a grid of identical blocks: look-alike places, a true revisit or none
 };
 
-/// The families' command-line names: corridor tunnel office stairwell urban field corridor_issue23.
+/// The families' command-line names: corridor tunnel office stairwell urban field corridor_issue23
+/// loop_block loop_eight loop_floor loop_repetitive.
 const std::vector<std::string>& familyNames();
 std::optional<Family> familyFromName(const std::string& name);
 std::string familyName(Family family);
@@ -37,6 +43,7 @@ enum class MotionKind
   Car,       // carDrive
   HandHeld,  // handHeld (sway, yaw bursts, stops, maybe a start from rest)
   TurnWalk,  // handHeldTurn through an L (office, corridor with a turn)
+  Path,      // pathFollow along rounded waypoints (the loop families; a car or a walker)
 };
 
 /// One drawn parameter with the range it was drawn from (for printing and for range checks).
@@ -67,12 +74,17 @@ struct FamilyDraw
   GroundProfile ground = GroundProfile::flat();  // urban hill / stairs walking surface
   double field_length_m = 0.0;
   int field_objects = 0;
+  CityGridOptions city;         // loop_block, loop_eight, loop_repetitive
+  RingFloorOptions ring_floor;  // loop_floor
+  /// loop_repetitive: the blocks repeat every this many metres along x and y (0 for the other families).
+  double block_period_m = 0.0;
 
   // Motion.
   MotionKind motion = MotionKind::HandHeld;
   CarDriveOptions car;
   HandHeldOptions walk;
   TurnWalkOptions turn_walk;
+  PathFollowOptions path;
 
   /// The value of a drawn parameter (nullopt if it was not drawn).
   std::optional<double> parameter(const std::string& key) const;
