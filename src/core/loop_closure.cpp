@@ -72,16 +72,14 @@ bool LoopClosure::separated(const Keyframe& a, const Keyframe& b) const
 
 void LoopClosure::dropOldClouds()
 {
-  std::size_t with = 0;
+  std::size_t bytes = 0;
   for (auto it = keyframes_.rbegin(); it != keyframes_.rend(); ++it)
   {
-    if (it->corners || it->surfs)
+    bytes += cloudBytes(it->corners) + cloudBytes(it->surfs);
+    if (bytes > config_.max_keyframe_bytes)
     {
-      if (++with > config_.max_keyframe_clouds)
-      {
-        it->corners.reset();
-        it->surfs.reset();
-      }
+      it->corners.reset();
+      it->surfs.reset();
     }
   }
 }

@@ -258,22 +258,33 @@ int localize(const Options& opt, const aloam::PipelineConfig& config, FrameSourc
 
 /// One row per loop tried: target and current keyframe, their stamps, how it was found, the verdict and
 /// its figures.
-void writeLoops(const std::string& path, const aloam::LoopClosure& loops)
+void writeLoops(const std::string& path, const aloam::LoopClosure& loops, const std::vector<double>& stamps,
+                std::size_t first_frame)
 {
+  // The frame of a keyframe's stamp (frames are in stamp order).
+  const auto frameOf = [&](double stamp)
+  {
+    const auto it = std::lower_bound(stamps.begin(), stamps.end(), stamp - 1e-6);
+    return first_frame + static_cast<std::size_t>(it - stamps.begin());
+  };
   std::ofstream out(path);
   if (!out)
   {
     throw std::runtime_error("cannot write " + path);
   }
-  out << "from\tto\tfrom_stamp\tto_stamp\tsource\taccepted\tinlier_share\tmean_residual_m\tdescriptor_distance\t"
-         "correction_m\tcorrection_deg\treason\n";
+  out << "from\tto\tfrom_frame\tto_frame\tfrom_stamp\tto_stamp\tsource\taccepted\tinlier_share\tmean_residual_m\t"
+         "descriptor_distance\tcorrection_m\tcorrection_deg\trel_x\trel_y\trel_z\trel_qx\trel_qy\trel_qz\trel_qw\t"
+         "reason\n";
   out << std::fixed;
   for (const aloam::LoopRecord& r : loops.history())
   {
-    out << r.from << "\t" << r.to << "\t" << std::setprecision(6) << r.from_stamp << "\t" << r.to_stamp << "\t"
+    out << r.from << "\t" << r.to << "\t" << frameOf(r.from_stamp) << "\t" << frameOf(r.to_stamp) << "\t"
+        << std::setprecision(6) << r.from_stamp << "\t" << r.to_stamp << "\t"
         << (r.source == aloam::LoopSource::kNearby ? "nearby" : "descriptor") << "\t" << (r.accepted ? 1 : 0) << "\t"
         << std::setprecision(3) << r.fitness.inlier_share << "\t" << r.fitness.mean_residual << "\t"
         << r.descriptor_distance << "\t" << r.correction_m << "\t" << r.correction_rad * 180.0 / M_PI << "\t"
+        << std::setprecision(6) << r.relative.t.x() << "\t" << r.relative.t.y() << "\t" << r.relative.t.z() << "\t"
+        << r.relative.q.x() << "\t" << r.relative.q.y() << "\t" << r.relative.q.z() << "\t" << r.relative.q.w() << "\t"
         << (r.accepted ? "accepted" : r.reason) << "\n";
   }
 }
@@ -559,6 +570,7 @@ int main(int argc, char** argv)
   struct Anchor
   {
     std::size_t keyframe = 0;
+    aloam::Pose keyframe_pose;  ///< the keyframe's pose when the frame was mapped
     aloam::Pose relative;
     bool set = false;
   };
@@ -598,7 +610,8 @@ int main(int argc, char** argv)
         {
           loop_ms.push_back(out.timings.loop_ms);
           anchor.keyframe = loops->keyframeAt(out.mapping.stamp);
-          anchor.relative = loops->keyframes()[anchor.keyframe].pose.inverse() * pose;
+          anchor.keyframe_pose = loops->keyframes()[anchor.keyframe].pose;
+          anchor.relative = anchor.keyframe_pose.inverse() * pose;
           anchor.set = true;
           for (const aloam::LoopRecord& r : out.loop.tried)
           {
@@ -642,9 +655,12 @@ int main(int argc, char** argv)
   {
     for (std::size_t i = 0; i < trajectory.size(); ++i)
     {
-      if (anchors[i].set)
+      const Anchor& a = anchors[i];
+      const aloam::Pose& now = a.set ? loops->keyframes()[a.keyframe].pose : a.keyframe_pose;
+      // Only where the graph moved the keyframe: elsewhere the pose stays exactly as mapping gave it.
+      if (a.set && (now.t != a.keyframe_pose.t || now.q.coeffs() != a.keyframe_pose.q.coeffs()))
       {
-        trajectory[i] = (loops->keyframes()[anchors[i].keyframe].pose * anchors[i].relative).isometry();
+        trajectory[i] = (now * a.relative).isometry();
       }
     }
   }
@@ -655,7 +671,7 @@ int main(int argc, char** argv)
               << (loops ? ", loop-corrected" : "") << ")\n";
     if (loops && !opt.loops.empty())
     {
-      writeLoops(opt.loops, *loops);
+      writeLoops(opt.loops, *loops, stamps, opt.start_frame);
       std::cout << "loops: " << opt.loops << "\n";
     }
     if (!opt.odometry_trajectory.empty())

@@ -385,20 +385,22 @@ TEST(LoopClosureTest, LookAlikeBlocksNeverClose)
 TEST(LoopClosureTest, KeyframesFollowDistanceAngleAndTheCloudBound)
 {
   LoopClosureConfig config;
-  config.max_keyframe_clouds = 3;
+  Cloud one = ts::cloudOf({ ts::makePoint(1.0, 2.0, 3.0) });
+  config.max_keyframe_bytes = 3 * sizeof(Point);  // three keyframes of one point each
   LoopClosure loops(config);
-  Cloud none;
-  EXPECT_TRUE(loops.addFrame(0.0, Pose(), none, none).keyframe);
-  EXPECT_FALSE(loops.addFrame(0.1, yawPose(0.5, 0.0, 0.0), none, none).keyframe);
-  EXPECT_TRUE(loops.addFrame(0.2, yawPose(1.0, 0.0, 0.0), none, none).keyframe);
-  EXPECT_TRUE(loops.addFrame(0.3, yawPose(1.0, 0.0, 12.0 * ts::kDegToRad), none, none).keyframe);
+  const Cloud none;
+  EXPECT_TRUE(loops.addFrame(0.0, Pose(), one, none).keyframe);
+  EXPECT_FALSE(loops.addFrame(0.1, yawPose(0.5, 0.0, 0.0), one, none).keyframe);
+  EXPECT_TRUE(loops.addFrame(0.2, yawPose(1.0, 0.0, 0.0), one, none).keyframe);
+  EXPECT_TRUE(loops.addFrame(0.3, yawPose(1.0, 0.0, 12.0 * ts::kDegToRad), one, none).keyframe);
   for (int i = 1; i <= 5; ++i)
   {
-    loops.addFrame(0.3 + i, yawPose(1.0 + 2.0 * i, 0.0, 0.0), none, none);
+    loops.addFrame(0.3 + i, yawPose(1.0 + 2.0 * i, 0.0, 0.0), one, none);
   }
   const LoopClosureStats s = loops.stats();
   EXPECT_EQ(s.keyframes, 8u);
   EXPECT_EQ(s.keyframes_with_clouds, 3u);
+  EXPECT_EQ(s.cloud_bytes, 3 * sizeof(Point));
   EXPECT_EQ(loops.mapSweeps().size(), 3u);
   EXPECT_EQ(loops.keyframeAt(0.25), 1u);
   EXPECT_EQ(loops.graph().edges().size(), 7u);

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # End-to-end check of the installed tools on real data: aloam_offline on KITTI 00 frames 0-100, then
-# aloam_eval from frame 6 with 10-70 m segments, against A-LOAM's figures on the same frames.
+# aloam_eval from frame 6 with 10-70 m segments, against A-LOAM's figures on the same frames. The same
+# frames with --loop-closure (they hold no revisit) must give the same trajectory, byte for byte.
 # Usage: check_offline_kitti.sh BIN_DIR KITTI_DIR OUT_DIR
 # Exit 0: passed; 1: failed; 77: skipped (no data), with the reason printed.
 set -euo pipefail
@@ -19,6 +20,9 @@ mkdir -p "$out"
 "$bin/aloam_eval" --gt "$data/poses_kitti_gt.txt" --calib "$data/calib.txt" \
   --trajectory "$out/trajectory.txt" --start 6 --segments 10,20,30,40,50,60,70 | tee "$out/eval.txt"
 
+"$bin/aloam_offline" --kitti "$data" --sensor HDL64 --trajectory "$out/trajectory_loops.txt" --loop-closure \
+  --loops "$out/loops.tsv" | tee "$out/offline_loops.txt"
+
 frames=$(grep -c . "$out/trajectory.txt")
 expected=$(find "$data/velodyne" -name '*.bin' | wc -l)
 drift=$(figure translation_drift_percent "$out/eval.txt")
@@ -26,7 +30,9 @@ ate=$(figure ate_rmse_m "$out/eval.txt")
 status=0
 [ "$frames" -eq "$expected" ] || { echo "FAIL: $frames poses for $expected scans"; status=1; }
 [ -s "$out/map.pcd" ] || { echo "FAIL: no map written"; status=1; }
+cmp -s "$out/trajectory.txt" "$out/trajectory_loops.txt" ||
+  { echo "FAIL: the trajectory differs with --loop-closure (no frame revisits a place)"; status=1; }
 at_most "drift (%)" "$drift" "$max_drift" || status=1
 at_most "ATE (m)" "$ate" "$max_ate" || status=1
-[ $status -eq 0 ] && echo "PASSED offline KITTI check: drift $drift % (<= $max_drift), ATE $ate m (<= $max_ate)"
+[ $status -eq 0 ] && echo "PASSED offline KITTI check: drift $drift % (<= $max_drift), ATE $ate m (<= $max_ate), identical with --loop-closure"
 exit $status

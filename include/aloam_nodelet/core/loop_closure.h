@@ -22,9 +22,10 @@ struct LoopClosureConfig
   double keyframe_angle = 10.0 * M_PI / 180.0;  ///< ... or this much rotation (rad)
   double keyframe_corner_leaf = 0.4;            ///< voxel leaf of a keyframe's stored edge points (m)
   double keyframe_surf_leaf = 0.8;              ///< ... and plane points
-  /// Keyframes that keep their clouds; beyond it the oldest lose them (their pose stays in the graph, but
-  /// they can no longer be a loop target nor rebuild the map). Bounds the memory.
-  std::size_t max_keyframe_clouds = 3000;
+  /// Memory the keyframes' clouds may take; beyond it the oldest lose them (their pose stays in the graph,
+  /// but they can no longer be a loop target nor rebuild the map). 256 MiB: about 1,300 HDL-64 keyframes
+  /// or 6,000 VLP-16 ones.
+  std::size_t max_keyframe_bytes = std::size_t(256) << 20;
   /// No loop between keyframes closer than this in time (s) or along the path (m).
   double min_loop_separation_time = 30.0;
   double min_loop_separation_path = 30.0;
