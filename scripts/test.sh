@@ -51,6 +51,7 @@ run_check tools/check_offline_bag.sh "$bin" "$checks_out/offline_bag"
 run_check tools/check_offline_kitti.sh "$bin" "$ALOAM_DATA/kitti00_101" "$checks_out/offline_kitti"
 run_check tools/check_localization_kitti.sh "$bin" "$ALOAM_DATA/kitti00_101" "$checks_out/localization_kitti"
 run_check tools/check_hard_cases.sh "$bin" "$checks_out/hard_cases"
+run_check tools/check_loops.sh "$bin" "$checks_out/loops"
 run_check fuzz/run_fuzz.sh "$checks_out/fuzz" 45
 run_check sanitize/run_sanitized_core_tests.sh "$checks_out/sanitize"
 run_check sanitize/run_tsan_core_tests.sh "$checks_out/tsan_core"

@@ -351,6 +351,8 @@ void LoopClosure::verify(LoopRecord& record) const
   }
   LaserMappingConfig matching = config_.matching;
   matching.threads = 1;
+  // From a coarse start up to half a grid step off: as many searches as localization takes to converge.
+  matching.outer_iterations = std::max(matching.outer_iterations, config_.outer_iterations);
   LaserMapping mapping(matching);
   mapping.loadMap(corners, surfs);
   mapping.setFrozen(true);

@@ -38,7 +38,7 @@ constexpr const char* kUsage =
     "                     [--tum OUT.tum] [--map OUT.pcd] [--deskew] [--minimum-range M] [--max-frames N]\n"
     "                     [--keep-every N] [--baseline] [--odometry-trajectory OUT.txt]\n"
     "                     [--nearby-elevation-deg DEG] [--save-map OUT.pcd] [--start-frame N]\n"
-    "                     [--loop-closure] [--loops OUT.tsv] [--min-loop-separation S]\n"
+    "                     [--loop-closure] [--loops OUT.tsv] [--min-loop-separation S] [--keyframe-distance M]\n"
     "       aloam_offline (--kitti DIR | --bag FILE --topic TOPIC) --sensor PRESET --trajectory OUT.txt\n"
     "                     --localize MAP.pcd [--initial-pose \"x y z roll pitch yaw\"] [--global]\n"
     "                     [--localization-log OUT.txt] [--map-after OUT.pcd] [--start-frame N]\n"
@@ -56,6 +56,8 @@ constexpr const char* kUsage =
     "  --loops OUT.tsv    every loop tried: keyframes, stamps, source, accepted, reason, fitness, correction\n"
     "  --min-loop-separation S\n"
     "                     no loop between keyframes closer than S seconds or S metres of path (default 30)\n"
+    "  --keyframe-distance M\n"
+    "                     a loop-closure keyframe every M metres of path (default 1)\n"
     "  --localize MAP.pcd localize every sweep in MAP (never changed) instead of mapping; --trajectory then\n"
     "                     holds the map <- lidar pose of every frame from --start-frame (the last known one\n"
     "                     while no pose is known)\n"
@@ -101,7 +103,7 @@ struct Options
   std::string kitti_dir, bag_file, topic, sensor, trajectory, tum, map, odometry_trajectory;
   std::string save_map, localize, initial_pose, localization_log, map_after, loops;
   bool loop_closure = false;
-  std::optional<double> min_loop_separation;
+  std::optional<double> min_loop_separation, keyframe_distance;
   bool global = false;
   std::size_t start_frame = 0;
   bool deskew = false;
@@ -347,6 +349,11 @@ bool parse(int argc, char** argv, Options& o)
       value(number);
       o.min_loop_separation = std::stod(number);
     }
+    else if (arg == "--keyframe-distance")
+    {
+      value(number);
+      o.keyframe_distance = std::stod(number);
+    }
     else if (arg == "--baseline")
       o.baseline = true;
     else if (arg == "--no-motion-hypotheses")
@@ -438,9 +445,9 @@ bool parse(int argc, char** argv, Options& o)
   {
     throw std::invalid_argument("--localize does not map: no --map or --save-map");
   }
-  if (!o.loop_closure && (!o.loops.empty() || o.min_loop_separation))
+  if (!o.loop_closure && (!o.loops.empty() || o.min_loop_separation || o.keyframe_distance))
   {
-    throw std::invalid_argument("--loops and --min-loop-separation need --loop-closure");
+    throw std::invalid_argument("--loops, --min-loop-separation and --keyframe-distance need --loop-closure");
   }
   if (!o.localize.empty() && o.loop_closure)
   {
@@ -522,6 +529,10 @@ int main(int argc, char** argv)
   if (opt.min_loop_separation)
   {
     config.loop.min_loop_separation_time = config.loop.min_loop_separation_path = *opt.min_loop_separation;
+  }
+  if (opt.keyframe_distance)
+  {
+    config.loop.keyframe_distance = *opt.keyframe_distance;
   }
 
   std::unique_ptr<FrameSource> source;

@@ -47,6 +47,8 @@ struct LoopClosureConfig
   double coarse_step = 1.5;
   double coarse_yaw = 10.0 * M_PI / 180.0;
   double coarse_yaw_step = 5.0 * M_PI / 180.0;
+  /// Correspondence searches of the registration (each followed by a solve).
+  int outer_iterations = 6;
   /// Acceptance: inlier share (matches within inlier_residual over points offered), mean residual of the
   /// matches, and a registration along every direction (mapping's MappingStatus::kOk).
   double inlier_residual = 0.2;
