@@ -226,8 +226,10 @@ LoopUpdate LoopClosure::addFrame(double stamp, const Pose& pose, const Cloud& co
     return update;
   }
   const Pose before = keyframes_.back().pose;
+  update.keyframes_before.reserve(keyframes_.size());
   for (std::size_t i = 0; i < keyframes_.size(); ++i)
   {
+    update.keyframes_before.push_back(keyframes_[i].pose);
     keyframes_[i].pose = graph_.pose(i);
   }
   update.optimized = true;

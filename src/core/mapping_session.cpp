@@ -1,5 +1,6 @@
 #include "aloam_nodelet/core/mapping_session.h"
 
+#include <chrono>
 #include <utility>
 
 namespace aloam
@@ -19,7 +20,77 @@ MappingSession::MappingSession(const MappingSessionConfig& config, std::shared_p
   : admission_(config.stamps)
   , trajectory_max_poses_(config.trajectory_max_poses)
   , mapping_(config.mapping, std::move(executor))
+  , loop_enabled_(config.loop_closure)
+  , loops_(config.loop)
 {
+}
+
+void MappingSession::setLoopClosure(bool enabled, const LoopClosureConfig& config)
+{
+  std::lock_guard<std::mutex> loop(loop_mutex_);
+  loops_.setConfig(config);
+  std::lock_guard<std::mutex> lock(core_mutex_);
+  loop_enabled_ = enabled;
+}
+
+LoopStep MappingSession::closeLoops()
+{
+  LoopStep step;
+  std::lock_guard<std::mutex> loop(loop_mutex_);
+  std::optional<MappedFrame> frame;
+  {
+    std::lock_guard<std::mutex> lock(core_mutex_);
+    if (loop_reset_pending_)
+    {
+      loops_.reset();
+      loop_reset_pending_ = false;
+      stats_.loops = loops_.stats();
+    }
+    if (!loop_enabled_ || !to_offer_ || to_offer_->epoch != map_epoch_)
+    {
+      to_offer_.reset();
+      return step;
+    }
+    std::swap(frame, to_offer_);
+  }
+  // Off the core lock: keyframe, candidates, verification, graph solve.
+  step.offered = true;
+  step.update = loops_.addFrame(frame->stamp, frame->pose, *frame->corners, *frame->surfs, frame->full.get());
+  if (!step.update.optimized)
+  {
+    std::lock_guard<std::mutex> lock(core_mutex_);
+    stats_.loops = loops_.stats();
+    return step;
+  }
+  const auto start = std::chrono::steady_clock::now();
+  const std::vector<MapSweep> sweeps = loops_.mapSweeps();
+  const std::vector<Keyframe>& keyframes = loops_.keyframes();
+  const std::vector<Pose>& before = step.update.keyframes_before;
+  std::lock_guard<std::mutex> lock(core_mutex_);
+  updateMapLocked(nullptr, nullptr);  // a frame registered meanwhile joins the old map first
+  mapping_.rebuildMap(sweeps, step.update.correction);
+  ++map_epoch_;
+  {
+    std::lock_guard<std::mutex> admission(admission_mutex_);
+    correction_ = mapping_.correction();
+  }
+  // Every recorded pose follows the newest keyframe at or before it, as the graph moved that keyframe.
+  for (std::size_t i = 0; i < trajectory_.poses.size(); ++i)
+  {
+    const std::size_t k = loops_.keyframeAt(trajectory_.stamps[i]);
+    if (k < before.size() && trajectory_.stamps[i] >= keyframes[k].stamp)
+    {
+      trajectory_.poses[i] = keyframes[k].pose * before[k].inverse() * trajectory_.poses[i];
+    }
+    else
+    {
+      trajectory_.poses[i] = step.update.correction * trajectory_.poses[i];  // before the first keyframe
+    }
+  }
+  step.rebuild_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  stats_.loops = loops_.stats();
+  stats_.last_rebuild_ms = step.rebuild_ms;
+  return step;
 }
 
 Admission MappingSession::admit(const OdometryFrame& frame, std::int64_t stamp_ns)
@@ -107,6 +178,15 @@ bool MappingSession::updateMapLocked(OdometryFrame* added, MappingResult* result
   }
   mapping_.updateMap(stats_.last);
   ++stats_.frames_mapped;
+  if (loop_enabled_ && !unmapped_.distorted)
+  {
+    to_offer_ = MappedFrame{ stats_.last.stamp,
+                             stats_.last.pose,
+                             std::make_shared<const Cloud>(mapping_.registeredCorners()),
+                             std::make_shared<const Cloud>(mapping_.registeredSurfs()),
+                             unmapped_.full,
+                             map_epoch_ };
+  }
   stats_.evicted_cubes = mapping_.totalEvictedCubes();
   has_unmapped_ = false;
   if (added)
@@ -124,6 +204,9 @@ bool MappingSession::updateMapLocked(OdometryFrame* added, MappingResult* result
 void MappingSession::resetLocked()
 {
   mapping_.reset();
+  to_offer_.reset();
+  ++map_epoch_;
+  loop_reset_pending_ = true;  // the loop closure forgets its keyframes at the next closeLoops()
   stats_.frames_in_map = 0;
   trajectory_.poses.clear();
   trajectory_.stamps.clear();

@@ -45,6 +45,7 @@ private:
   void registerWaiting();  // registers the newest waiting frame and publishes its pose
   void updateMap();        // the after-the-pose job
   void publishUpdate();    // adds the registered frame to the map and publishes the clouds
+  void closeLoops();       // loop closure, on the lane after the map update
   void publishClouds(const aloam::OdometryFrame& frame, const aloam::MappingResult& result);
   void report(diagnostic_updater::DiagnosticStatusWrapper& s);
   bool saveMapCb(SaveMap::Request& request, SaveMap::Response& response);
@@ -210,10 +211,36 @@ void LaserMappingNodelet::publishUpdate()
 void LaserMappingNodelet::updateMap()
 {
   publishUpdate();
+  closeLoops();
   if (!waiting_.empty())
   {
     registerWaiting();  // mapping was behind: the newest frame that came meanwhile
   }
+}
+
+void LaserMappingNodelet::closeLoops()
+{
+  const aloam::LoopStep step = session_->closeLoops();
+  for (const aloam::LoopRecord& r : step.update.tried)
+  {
+    if (!r.accepted)
+    {
+      NODELET_DEBUG("loop %zu -> %zu rejected: %s", r.to, r.from, r.reason.c_str());
+    }
+  }
+  if (!step.update.optimized)
+  {
+    return;
+  }
+  const aloam::LoopRecord& loop = step.update.tried.back();
+  NODELET_INFO(
+      "loop closed: keyframe %zu to %zu (%.1f s earlier), %.2f m / %.2f deg correction; graph %.1f ms, "
+      "map rebuilt in %.1f ms",
+      loop.to, loop.from, loop.to_stamp - loop.from_stamp, loop.correction_m, loop.correction_rad * 180.0 / M_PI,
+      step.update.graph.ms, step.rebuild_ms);
+  // The whole path moves with the corrected keyframes.
+  const aloam::RecordedTrajectory corrected = session_->trajectory();
+  outputs_.replacePath(corrected.poses, corrected.stamps);
 }
 
 void LaserMappingNodelet::publishClouds(const aloam::OdometryFrame& frame, const aloam::MappingResult& result)
@@ -254,6 +281,12 @@ void LaserMappingNodelet::report(diagnostic_updater::DiagnosticStatusWrapper& s)
   s.add("map cubes", stats.last.cubes);
   s.add("cubes evicted", stats.evicted_cubes);
   s.add("trajectory poses dropped (trajectory_max_poses)", stats.trajectory_dropped);
+  s.add("loop closure keyframes", stats.loops.keyframes);
+  s.add("loop closure keyframe clouds (MiB)", static_cast<double>(stats.loops.cloud_bytes) / (1024.0 * 1024.0));
+  s.add("loops accepted", stats.loops.accepted);
+  s.add("loops rejected", stats.loops.rejected);
+  s.add("last pose graph solve (ms)", stats.loops.last_optimize_ms);
+  s.add("last map rebuild (ms)", stats.last_rebuild_ms);
   if (stats.last.status == aloam::MappingStatus::kDegraded)
   {
     s.summary(diagnostic_msgs::DiagnosticStatus::WARN, "degraded: too few or degenerate matches, prediction used");
@@ -278,6 +311,15 @@ void LaserMappingNodelet::reconfigureCb(const LaserMappingConfig& c)
   config.degeneracy_remap = c.degeneracy_remap;
   config.soft_remap = c.soft_remap;
   config.deskew_first_late = c.deskew_first_late;
+  aloam::LoopClosureConfig loop;
+  loop.matching = config;
+  loop.keyframe_distance = c.keyframe_distance;
+  loop.min_loop_separation_time = loop.min_loop_separation_path = c.min_loop_separation;
+  loop.search_radius = c.loop_search_radius;
+  loop.min_inlier_share = c.loop_min_inlier_share;
+  loop.max_mean_residual = c.loop_max_mean_residual;
+  loop.max_descriptor_distance = c.loop_max_descriptor_distance;
+  session_->setLoopClosure(c.loop_closure, loop);
   // Waits for the frame being mapped; a new cube size re-buckets the map (no point is lost).
   const auto [before, after] = session_->setMappingConfig(config);
   NODELET_INFO("reconfigured: cube %.1f m, leaves %.2f / %.2f m, %d x %d iterations; map %zu points (was %zu)",

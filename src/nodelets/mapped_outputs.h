@@ -110,6 +110,29 @@ public:
     appendAndPublish(path_, pose_stamped, path_max_poses_, path_pub_);
   }
 
+  /// Replaces the path by these poses (map <- sensor), the newest path_max_poses of them (a loop closed).
+  void replacePath(const std::vector<aloam::Pose>& poses, const std::vector<double>& stamps)
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    path_.poses.clear();
+    const std::size_t first = poses.size() > path_max_poses_ ? poses.size() - path_max_poses_ : 0;
+    for (std::size_t i = first; i < poses.size(); ++i)
+    {
+      ros::Time stamp;
+      stamp.fromSec(stamps[i]);
+      const nav_msgs::Odometry::Ptr odom = odometryMsg(poses[i], stamp);
+      geometry_msgs::PoseStamped p;
+      p.header = odom->header;
+      p.pose = odom->pose.pose;
+      path_.poses.push_back(p);
+    }
+    if (!path_.poses.empty() && path_pub_.getNumSubscribers() > 0)
+    {
+      path_.header.stamp = path_.poses.back().header.stamp;
+      path_pub_.publish(boost::make_shared<nav_msgs::Path>(path_));
+    }
+  }
+
   /// Forgets the path (a new map).
   void clearPath()
   {

@@ -18,7 +18,6 @@ namespace sim
 {
 namespace
 {
-constexpr double kPi = 3.14159265358979323846;
 constexpr double kCollinear = 1e-9;      // rad; smaller corner angles make no turn
 constexpr double kMaxCornerAngle = 3.1;  // rad; sharper corners (U-turns) are refused
 constexpr double kLegTolerance = 1e-9;   // m
@@ -247,16 +246,9 @@ PoseFunction pathFollow(const PathFollowOptions& options)
     const double heading = path->heading(s);
     const Eigen::Vector2d xy =
         path->position(s) + options.lateral_offset_m * Eigen::Vector2d(-std::sin(heading), std::cos(heading));
-    const double bob_phase = 2.0 * kPi * options.bob_frequency_hz * t;
-    const double roll = options.roll_amplitude_rad * std::sin(0.5 * bob_phase);
-    const double yaw = heading + options.yaw_sway_rad * std::cos(0.5 * bob_phase);
-    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    pose.linear() =
-        (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
-            .toRotationMatrix();
-    pose.translation() =
-        Eigen::Vector3d(xy.x(), xy.y(), options.height_m + options.bob_amplitude_m * std::sin(bob_phase));
-    return pose;
+    return swayedPose(xy, heading, t,
+                      WalkSway{ options.height_m, options.bob_amplitude_m, options.bob_frequency_hz,
+                                options.roll_amplitude_rad, options.yaw_sway_rad });
   };
 }
 

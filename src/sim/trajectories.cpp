@@ -400,17 +400,22 @@ PoseFunction handHeldTurn(const TurnWalkOptions& options)
            (d - options.turn_start_m - options.turn_length_m) *
                direction(options.start_heading + options.turn_angle_rad);
     }
-    const double bob_phase = 2.0 * kPi * options.bob_frequency_hz * t;
-    const double roll = options.roll_amplitude_rad * std::sin(0.5 * bob_phase);
-    const double yaw = turnWalkHeading(options, d) + options.yaw_sway_rad * std::cos(0.5 * bob_phase);
-    Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-    pose.linear() =
-        (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
-            .toRotationMatrix();
-    pose.translation() =
-        Eigen::Vector3d(xy.x(), xy.y(), options.height_m + options.bob_amplitude_m * std::sin(bob_phase));
-    return pose;
+    return swayedPose(xy, turnWalkHeading(options, d), t,
+                      WalkSway{ options.height_m, options.bob_amplitude_m, options.bob_frequency_hz,
+                                options.roll_amplitude_rad, options.yaw_sway_rad });
   };
+}
+
+Eigen::Isometry3d swayedPose(const Eigen::Vector2d& xy, double heading, double t, const WalkSway& sway)
+{
+  const double bob_phase = 2.0 * kPi * sway.bob_frequency_hz * t;
+  const double roll = sway.roll_amplitude_rad * std::sin(0.5 * bob_phase);
+  const double yaw = heading + sway.yaw_sway_rad * std::cos(0.5 * bob_phase);
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  pose.linear() = (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) * Eigen::AngleAxisd(roll, Eigen::Vector3d::UnitX()))
+                      .toRotationMatrix();
+  pose.translation() = Eigen::Vector3d(xy.x(), xy.y(), sway.height_m + sway.bob_amplitude_m * std::sin(bob_phase));
+  return pose;
 }
 
 HandHeldOptions stairsWalkOptions(const StairsOptions& stairs)

@@ -7,7 +7,9 @@
 #include <cstdio>
 #include <vector>
 
+#include "aloam_nodelet/core/laser_odometry.h"
 #include "aloam_nodelet/core/loop_closure.h"
+#include "aloam_nodelet/core/mapping_session.h"
 #include "aloam_nodelet/core/pipeline.h"
 #include "aloam_nodelet/core/pose_graph.h"
 #include "aloam_nodelet/core/scan_context.h"
@@ -368,7 +370,7 @@ TEST(LoopClosureTest, LookAlikeBlocksNeverClose)
   const sim::Scene scene = repeatedBlocks();
   LoopClosure loops(shortRunConfig());
   const ts::Trajectory drive = [](double t) { return ts::poseFrom(10.0 + 6.0 * t, 0.0, ts::kSensorHeight, 0.0); };
-  runDrifted(loops, scene, drive, 45.0, 0.2, 0.05 * ts::kDegToRad, 1.0);
+  runDrifted(loops, scene, drive, 30.0, 0.25, 0.05 * ts::kDegToRad, 1.0);
   std::size_t descriptor_tried = 0;
   for (const LoopRecord& r : loops.history())
   {
@@ -478,6 +480,74 @@ TEST(LoopClosurePipelineTest, OutAndBackClosesAndEndsNearTheTruth)
   EXPECT_GE(s.accepted, 1u);
   EXPECT_LT(ts::translationError(end_on, end_truth), 0.3);
   EXPECT_LT(ate_on, ate_off + 0.05);
+}
+
+// The mapping nodelet's path: admit, register, update the map, then closeLoops() on the lane. Loops close,
+// the recorded trajectory and the full-rate answer follow the corrected map, and a reset starts the loop
+// closure over.
+TEST(LoopClosureSessionTest, ClosesLoopsOffThePosePathAndCorrectsTheTrajectory)
+{
+  const SensorModel sensor = ts::preset("VLP16");
+  constexpr double kLength = 60.0, kSpeed = 6.0;
+  const ts::Trajectory drive = outAndBack(20.0, kLength, kSpeed);
+  const double duration = outAndBackDuration(kLength, kSpeed);
+  ScanRegistrationConfig rc;
+  rc.sensor = sensor;
+  ScanRegistration registration(rc);
+  LaserOdometry odometry;
+  MappingSessionConfig config;
+  config.loop_closure = true;
+  config.loop = shortRunConfig();
+  MappingSession session(config);
+  const Eigen::Isometry3d origin = drive(0.1);
+  std::size_t optimized = 0;
+  Pose last_answer;
+  for (int k = 0; 0.1 * (k + 1) <= duration; ++k)
+  {
+    const double t = 0.1 * (k + 1);
+    auto features = std::make_shared<FeatureSet>();
+    ASSERT_TRUE(registration.process(ts::staticSweep(sensor, drive(t)), t, true, true, *features));
+    const OdometryFrame frame = odometry.track(features);
+    odometry.indexLast();
+    const Admission admission = session.admit(frame, static_cast<std::int64_t>(std::llround(t * 1e9)));
+    ASSERT_TRUE(admission.taken);
+    last_answer = admission.corrected;
+    session.registerFrame(frame);
+    session.updateMap();
+    const LoopStep step = session.closeLoops();
+    optimized += step.update.optimized;
+    if (step.update.optimized)
+    {
+      EXPECT_GT(step.rebuild_ms, 0.0);
+    }
+  }
+  const MappingSessionStats stats = session.stats();
+  const RecordedTrajectory trajectory = session.trajectory();
+  ASSERT_FALSE(trajectory.poses.empty());
+  const Pose end_truth = ts::toPose(origin.inverse() * drive(trajectory.stamps.back()));
+  const double end_error = ts::translationError(trajectory.relativeToFirst().back(), end_truth);
+  std::printf(
+      "[ measured ] session: %zu keyframes, %zu loops accepted of %zu, %zu graph solves; end %.3f m off; "
+      "last rebuild %.1f ms\n",
+      stats.loops.keyframes, stats.loops.accepted, stats.loops.tried, optimized, end_error, stats.last_rebuild_ms);
+  EXPECT_GE(stats.loops.accepted, 1u);
+  EXPECT_EQ(optimized, stats.loops.optimizations);
+  EXPECT_LT(end_error, 0.3);
+  EXPECT_GT(stats.loops.cloud_bytes, 0u);
+
+  // Off: nothing is offered. A reset: the keyframes go with the map.
+  session.setLoopClosure(false, config.loop);
+  EXPECT_FALSE(session.closeLoops().offered);
+  session.requestReset();
+  session.setLoopClosure(true, config.loop);
+  auto features = std::make_shared<FeatureSet>();
+  ASSERT_TRUE(registration.process(ts::staticSweep(sensor, drive(duration)), duration + 0.1, true, true, *features));
+  const OdometryFrame frame = odometry.track(features);
+  session.admit(frame, static_cast<std::int64_t>(std::llround((duration + 0.1) * 1e9)));
+  session.registerFrame(frame);
+  session.updateMap();
+  EXPECT_TRUE(session.closeLoops().offered);
+  EXPECT_EQ(session.stats().loops.keyframes, 1u);
 }
 
 }  // namespace

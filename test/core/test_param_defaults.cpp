@@ -22,6 +22,7 @@
 #include <gtest/gtest.h>
 
 #include "aloam_nodelet/core/laser_mapping.h"
+#include "aloam_nodelet/core/mapping_session.h"
 #include "aloam_nodelet/core/laser_odometry.h"
 #include "aloam_nodelet/core/scan_registration.h"
 #include "aloam_nodelet/core/stamp_check.h"
@@ -117,6 +118,8 @@ std::map<std::string, Defaults> structDefaults()
   const aloam::ScanRegistrationConfig r;
   const aloam::LaserOdometryConfig o;
   const aloam::LaserMappingConfig m;
+  const aloam::MappingSessionConfig session;
+  const aloam::LoopClosureConfig loop;
   const aloam::StampCheckConfig s;
   const aloam::ros_io::ReaderOptions reader;
   const Defaults stamps = { { "scan_period", str(s.scan_period) },
@@ -167,6 +170,13 @@ std::map<std::string, Defaults> structDefaults()
       { "deskew_first_late", str(m.deskew_first_late) },
       { "eviction_radius", str(m.eviction_radius) },
       { "threads", str(m.threads) },
+      { "loop_closure", str(session.loop_closure) },
+      { "keyframe_distance", str(loop.keyframe_distance) },
+      { "min_loop_separation", str(loop.min_loop_separation_time) },
+      { "loop_search_radius", str(loop.search_radius) },
+      { "loop_min_inlier_share", str(loop.min_inlier_share) },
+      { "loop_max_mean_residual", str(loop.max_mean_residual) },
+      { "loop_max_descriptor_distance", str(loop.max_descriptor_distance) },
   });
   return d;
 }

@@ -119,6 +119,7 @@ struct LoopUpdate
   /// The corrected map <- the map before the optimization, at the newest keyframe: applied to the
   /// mapping's correction it moves the next poses into the corrected map.
   Pose correction;
+  std::vector<Pose> keyframes_before;  ///< with `optimized`: every keyframe's pose before the solve
   PoseGraphSummary graph;
   double verify_ms = 0.0;
 };

@@ -7,9 +7,11 @@
 #include <cstdint>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <vector>
 
 #include "aloam_nodelet/core/laser_mapping.h"
+#include "aloam_nodelet/core/loop_closure.h"
 #include "aloam_nodelet/core/stamp_check.h"
 
 namespace aloam
@@ -20,6 +22,17 @@ struct MappingSessionConfig
   StampCheckConfig stamps;
   /// Poses kept for saving the trajectory (28 h at 10 Hz, 136 MB); beyond it the oldest tenth goes at once.
   std::size_t trajectory_max_poses = 1'000'000;
+  /// Loop closure (closeLoops()); off: closeLoops() does nothing.
+  bool loop_closure = false;
+  LoopClosureConfig loop;
+};
+
+/// What closeLoops() did, for the node's logs and outputs.
+struct LoopStep
+{
+  bool offered = false;  ///< a mapped frame was offered to the loop closure
+  LoopUpdate update;
+  double rebuild_ms = 0.0;  ///< map rebuild and trajectory rewrite, under the core lock (accepted loops only)
 };
 
 /// What the session made of an arriving frame (admit()): the time policy's verdict (FrameAdmission; a
@@ -42,6 +55,8 @@ struct MappingSessionStats
   std::size_t evicted_cubes = 0;
   std::size_t trajectory_dropped = 0;  ///< oldest poses dropped beyond trajectory_max_poses
   StampCounts stamps;
+  LoopClosureStats loops;
+  double last_rebuild_ms = 0.0;
 };
 
 /// The poses of the registered frames (map <- sensor) and their stamps, bounded.
@@ -75,6 +90,13 @@ public:
   /// After the pose: the last registered frame joins the map and the next submap is indexed. Returns
   /// false when there was nothing to add. `added` receives that frame and its completed result.
   bool updateMap(OdometryFrame* added = nullptr, MappingResult* result = nullptr);
+
+  /// After the pose and the map update: offers the last mapped frame to the loop closure. Verification and
+  /// the graph solve run outside the core lock, so registrations go on meanwhile; an accepted loop then
+  /// rebuilds the map from the corrected keyframes and rewrites the recorded trajectory under the lock.
+  /// Call from one thread (the stage's lane).
+  LoopStep closeLoops();
+  void setLoopClosure(bool enabled, const LoopClosureConfig& config);
 
   /// A new map starts before the next registration (service call).
   void requestReset();
@@ -119,6 +141,22 @@ private:
   OdometryFrame unmapped_;  // registered, not yet in the map
   bool has_unmapped_ = false;
   MappingSessionStats stats_;
+
+  // Loop closure: the last mapped frame waiting for closeLoops() (core_mutex_), and the loop closure itself
+  // (loop_mutex_, taken before core_mutex_ when both are needed).
+  struct MappedFrame
+  {
+    double stamp = 0.0;
+    Pose pose;
+    std::shared_ptr<const Cloud> corners, surfs, full;
+    std::size_t epoch = 0;  ///< map_epoch_ when it was registered
+  };
+  std::optional<MappedFrame> to_offer_;
+  std::size_t map_epoch_ = 0;  ///< map rebuilds and resets so far: a frame of an older epoch is not offered
+  bool loop_enabled_ = false;
+  bool loop_reset_pending_ = false;  ///< the map was reset: the loop closure starts over too
+  mutable std::mutex loop_mutex_;
+  LoopClosure loops_;
 };
 
 }  // namespace aloam

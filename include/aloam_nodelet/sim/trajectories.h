@@ -84,6 +84,19 @@ struct TurnWalkOptions
   double yaw_sway_rad = 0.03;  // at half the bobbing frequency
 };
 
+/// How a hand-held sensor sways as it is carried: it bobs at bob_frequency_hz, and rolls and sways in yaw at
+/// half that frequency.
+struct WalkSway
+{
+  double height_m = 1.5;  // mean height above the walking surface
+  double bob_amplitude_m = 0.03;
+  double bob_frequency_hz = 2.0;
+  double roll_amplitude_rad = 0.01;
+  double yaw_sway_rad = 0.03;
+};
+/// world <- sensor of a sensor carried at `xy` looking along `heading` (rad), swaying as `sway` says at time t.
+Eigen::Isometry3d swayedPose(const Eigen::Vector2d& xy, double heading, double t, const WalkSway& sway);
+
 /// Displacement (in the frame of the heading before the turn: x forward, y left) over the turn itself.
 Eigen::Vector2d turnDisplacement(double turn_angle_rad, double turn_length_m);
 /// Heading of the path (rad) after `distance_m` metres.
