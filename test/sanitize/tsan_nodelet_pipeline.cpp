@@ -148,9 +148,29 @@ struct ServiceCaller
     expect(answered, applied, node + " set_parameters " + name);
   }
 
+  void reconfigureBool(const std::string& node, const std::string& name, bool value)
+  {
+    dynamic_reconfigure::Reconfigure srv;
+    dynamic_reconfigure::BoolParameter p;
+    p.name = name;
+    p.value = value;
+    srv.request.config.bools.push_back(p);
+    const bool answered = ros::service::call(node + "/set_parameters", srv);
+    bool applied = false;
+    for (const auto& b : srv.response.config.bools)
+    {
+      applied = applied || (b.name == name && static_cast<bool>(b.value) == value);
+    }
+    expect(answered, applied, node + " set_parameters " + name);
+  }
+
   void round(int r)
   {
     const bool odd = r % 2 == 1;
+    // Loop closure on in three rounds of four: its lane work (keyframes, verification) runs beside the
+    // registrations, and switching it touches the session from the reconfigure thread.
+    reconfigureBool("/laser_mapping", "loop_closure", r % 4 != 3);
+    reconfigure("/laser_mapping", "min_loop_separation", 3.0);
     reconfigure("/scan_registration", "minimum_range", odd ? 0.5 : 0.3);
     reconfigureInt("/laser_odometry", "max_iterations", odd ? 5 : 4);
     reconfigure("/laser_mapping", "cube_size", odd ? 40.0 : 50.0);
