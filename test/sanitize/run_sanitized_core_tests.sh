@@ -10,5 +10,5 @@ source "$root/test/sanitize/sanitize_common.sh"
 sanitize_build_core_tests "$root" "$out" test_core_sanitized -fsanitize=address,undefined \
   -fno-sanitize-recover=undefined || exit 1
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-  "$out/test_core_sanitized" --gtest_brief=1 | tail -n 3
+  "$out/test_core_sanitized" --gtest_brief=1 --gtest_filter="$(sanitize_gtest_filter)" | tail -n 3
 echo "PASSED core tests under AddressSanitizer + UndefinedBehaviorSanitizer"

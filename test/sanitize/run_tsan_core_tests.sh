@@ -13,7 +13,7 @@ sanitize_build_core_tests "$root" "$out" test_core_tsan -fsanitize=thread || exi
 log="$out/test_core_tsan.log"
 start=$SECONDS
 status=0
-TSAN_OPTIONS="$(tsan_options "$root")" "$out/test_core_tsan" --gtest_brief=1 >"$log" 2>&1 || status=$?
+TSAN_OPTIONS="$(tsan_options "$root")" "$out/test_core_tsan" --gtest_brief=1 --gtest_filter="$(sanitize_gtest_filter)" >"$log" 2>&1 || status=$?
 tail -n 3 "$log"
 echo "ran the core tests under ThreadSanitizer in $((SECONDS - start)) s (log: $log)"
 reports=$(tsan_reports "$log")
