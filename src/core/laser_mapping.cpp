@@ -378,14 +378,39 @@ void LaserMapping::updateMap(MappingResult& result)
   result.cubes = map_.cubeCount();
 }
 
-void LaserMapping::rebuildMap(const std::vector<MapSweep>& sweeps, const Pose& change)
+CubeMap LaserMapping::buildMap(const std::vector<MapSweep>& sweeps, const LaserMappingConfig& config)
 {
-  map_.clear();
-  const Cloud none;
+  CubeMap map(config.cube_size, config.corner_leaf_size, config.surf_leaf_size);
+  Cloud world;
   for (const MapSweep& sweep : sweeps)
   {
-    insertClouds(sweep.corners ? *sweep.corners : none, sweep.surfs ? *sweep.surfs : none, sweep.pose);
+    for (const bool is_corners : { true, false })
+    {
+      const auto& cloud = is_corners ? sweep.corners : sweep.surfs;
+      if (!cloud)
+      {
+        continue;
+      }
+      world.clear();
+      world.points.reserve(cloud->size());
+      for (const Point& p : cloud->points)
+      {
+        world.points.push_back(transformPoint(sweep.pose, p));
+      }
+      is_corners ? map.insertCorners(world) : map.insertSurfs(world);
+    }
   }
+  return map;
+}
+
+void LaserMapping::rebuildMap(const std::vector<MapSweep>& sweeps, const Pose& change)
+{
+  replaceMap(buildMap(sweeps, config_), change);
+}
+
+void LaserMapping::replaceMap(CubeMap map, const Pose& change)
+{
+  map_ = std::move(map);
   correction_ = change * correction_;
   pending_pose_ = change * pending_pose_;
   prepareSubmap(map_.indexOf(pending_pose_.t));

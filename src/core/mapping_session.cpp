@@ -62,34 +62,46 @@ LoopStep MappingSession::closeLoops()
     stats_.loops = loops_.stats();
     return step;
   }
-  const auto start = std::chrono::steady_clock::now();
-  const std::vector<MapSweep> sweeps = loops_.mapSweeps();
+  // The corrected map is built off the core lock too; the lock only swaps it in.
+  LaserMappingConfig config;
+  {
+    std::lock_guard<std::mutex> lock(core_mutex_);
+    config = mapping_.config();
+  }
+  auto start = std::chrono::steady_clock::now();
+  CubeMap map = LaserMapping::buildMap(loops_.mapSweeps(), config);
+  step.build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   const std::vector<Keyframe>& keyframes = loops_.keyframes();
   const std::vector<Pose>& before = step.update.keyframes_before;
   std::lock_guard<std::mutex> lock(core_mutex_);
-  updateMapLocked(nullptr, nullptr);  // a frame registered meanwhile joins the old map first
-  mapping_.rebuildMap(sweeps, step.update.correction);
+  start = std::chrono::steady_clock::now();
+  updateMapLocked(nullptr, nullptr);  // a frame registered meanwhile joins the old map, which goes
+  if (mapping_.config().cube_size != config.cube_size ||
+      mapping_.config().corner_leaf_size != config.corner_leaf_size ||
+      mapping_.config().surf_leaf_size != config.surf_leaf_size)
+  {
+    map = LaserMapping::buildMap(loops_.mapSweeps(), mapping_.config());  // reconfigured meanwhile
+  }
+  mapping_.replaceMap(std::move(map), step.update.correction);
   ++map_epoch_;
   {
     std::lock_guard<std::mutex> admission(admission_mutex_);
     correction_ = mapping_.correction();
   }
-  // Every recorded pose follows the newest keyframe at or before it, as the graph moved that keyframe.
+  // Every recorded pose follows the newest keyframe at or before it (the first keyframe, which the graph
+  // holds fixed, for the poses before it), as the graph moved that keyframe.
   for (std::size_t i = 0; i < trajectory_.poses.size(); ++i)
   {
     const std::size_t k = loops_.keyframeAt(trajectory_.stamps[i]);
-    if (k < before.size() && trajectory_.stamps[i] >= keyframes[k].stamp)
+    if (k < before.size())
     {
       trajectory_.poses[i] = keyframes[k].pose * before[k].inverse() * trajectory_.poses[i];
-    }
-    else
-    {
-      trajectory_.poses[i] = step.update.correction * trajectory_.poses[i];  // before the first keyframe
     }
   }
   step.rebuild_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   stats_.loops = loops_.stats();
   stats_.last_rebuild_ms = step.rebuild_ms;
+  stats_.last_build_ms = step.build_ms;
   return step;
 }
 

@@ -235,9 +235,9 @@ void LaserMappingNodelet::closeLoops()
   const aloam::LoopRecord& loop = step.update.tried.back();
   NODELET_INFO(
       "loop closed: keyframe %zu to %zu (%.1f s earlier), %.2f m / %.2f deg correction; graph %.1f ms, "
-      "map rebuilt in %.1f ms",
+      "map built in %.1f ms, swapped in in %.1f ms",
       loop.to, loop.from, loop.to_stamp - loop.from_stamp, loop.correction_m, loop.correction_rad * 180.0 / M_PI,
-      step.update.graph.ms, step.rebuild_ms);
+      step.update.graph.ms, step.build_ms, step.rebuild_ms);
   // The whole path moves with the corrected keyframes.
   const aloam::RecordedTrajectory corrected = session_->trajectory();
   outputs_.replacePath(corrected.poses, corrected.stamps);
@@ -286,7 +286,8 @@ void LaserMappingNodelet::report(diagnostic_updater::DiagnosticStatusWrapper& s)
   s.add("loops accepted", stats.loops.accepted);
   s.add("loops rejected", stats.loops.rejected);
   s.add("last pose graph solve (ms)", stats.loops.last_optimize_ms);
-  s.add("last map rebuild (ms)", stats.last_rebuild_ms);
+  s.add("last map rebuild (ms)", stats.last_build_ms);
+  s.add("last map swap under the lock (ms)", stats.last_rebuild_ms);
   if (stats.last.status == aloam::MappingStatus::kDegraded)
   {
     s.summary(diagnostic_msgs::DiagnosticStatus::WARN, "degraded: too few or degenerate matches, prediction used");

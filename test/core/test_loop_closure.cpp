@@ -501,7 +501,7 @@ TEST(LoopClosureSessionTest, ClosesLoopsOffThePosePathAndCorrectsTheTrajectory)
   MappingSession session(config);
   const Eigen::Isometry3d origin = drive(0.1);
   std::size_t optimized = 0;
-  Pose last_answer;
+  Pose last_answer, first_pose;
   for (int k = 0; 0.1 * (k + 1) <= duration; ++k)
   {
     const double t = 0.1 * (k + 1);
@@ -512,7 +512,11 @@ TEST(LoopClosureSessionTest, ClosesLoopsOffThePosePathAndCorrectsTheTrajectory)
     const Admission admission = session.admit(frame, static_cast<std::int64_t>(std::llround(t * 1e9)));
     ASSERT_TRUE(admission.taken);
     last_answer = admission.corrected;
-    session.registerFrame(frame);
+    const MappingResult registered = session.registerFrame(frame);
+    if (k == 0)
+    {
+      first_pose = registered.pose;
+    }
     session.updateMap();
     const LoopStep step = session.closeLoops();
     optimized += step.update.optimized;
@@ -534,6 +538,10 @@ TEST(LoopClosureSessionTest, ClosesLoopsOffThePosePathAndCorrectsTheTrajectory)
   EXPECT_EQ(optimized, stats.loops.optimizations);
   EXPECT_LT(end_error, 0.3);
   EXPECT_GT(stats.loops.cloud_bytes, 0u);
+  // The graph holds the first keyframe: the poses up to it stay where mapping put them.
+  EXPECT_LT(ts::translationError(trajectory.poses.front(), first_pose), 1e-6);
+  // The full-rate answer is in the corrected map: it agrees with the last recorded pose.
+  EXPECT_LT(ts::translationError(last_answer, trajectory.poses.back()), 0.5);
 
   // Off: nothing is offered. A reset: the keyframes go with the map.
   session.setLoopClosure(false, config.loop);

@@ -156,6 +156,10 @@ public:
   /// map merges every sweep, and moves the frame last added (and so the next prediction) by `change`
   /// (corrected map <- map before): the correction becomes change * correction. Call after updateMap().
   void rebuildMap(const std::vector<MapSweep>& sweeps, const Pose& change);
+  /// The same with the map built beforehand (buildMap), so that the building need not hold the stage.
+  void replaceMap(CubeMap map, const Pose& change);
+  /// A map of these sweeps as rebuildMap() makes it, with the configuration's cube and leaf sizes.
+  static CubeMap buildMap(const std::vector<MapSweep>& sweeps, const LaserMappingConfig& config);
 
   // Localization in a saved map (see Localizer). None of these is used while mapping.
 

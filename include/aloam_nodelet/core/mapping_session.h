@@ -32,7 +32,8 @@ struct LoopStep
 {
   bool offered = false;  ///< a mapped frame was offered to the loop closure
   LoopUpdate update;
-  double rebuild_ms = 0.0;  ///< map rebuild and trajectory rewrite, under the core lock (accepted loops only)
+  double build_ms = 0.0;    ///< building the corrected map, off the core lock (accepted loops only)
+  double rebuild_ms = 0.0;  ///< swapping it in, the next submap and the trajectory rewrite, under the core lock
 };
 
 /// What the session made of an arriving frame (admit()): the time policy's verdict (FrameAdmission; a
@@ -56,7 +57,8 @@ struct MappingSessionStats
   std::size_t trajectory_dropped = 0;  ///< oldest poses dropped beyond trajectory_max_poses
   StampCounts stamps;
   LoopClosureStats loops;
-  double last_rebuild_ms = 0.0;
+  double last_build_ms = 0.0;    ///< the last corrected map's building (off the core lock)
+  double last_rebuild_ms = 0.0;  ///< ... and what then held the core lock
 };
 
 /// The poses of the registered frames (map <- sensor) and their stamps, bounded.
@@ -91,9 +93,9 @@ public:
   /// false when there was nothing to add. `added` receives that frame and its completed result.
   bool updateMap(OdometryFrame* added = nullptr, MappingResult* result = nullptr);
 
-  /// After the pose and the map update: offers the last mapped frame to the loop closure. Verification and
-  /// the graph solve run outside the core lock, so registrations go on meanwhile; an accepted loop then
-  /// rebuilds the map from the corrected keyframes and rewrites the recorded trajectory under the lock.
+  /// After the pose and the map update: offers the last mapped frame to the loop closure. Verification, the
+  /// graph solve and building the corrected map run outside the core lock, so registrations go on meanwhile;
+  /// the lock is taken to swap the corrected map in and rewrite the recorded trajectory.
   /// Call from one thread (the stage's lane).
   LoopStep closeLoops();
   void setLoopClosure(bool enabled, const LoopClosureConfig& config);
