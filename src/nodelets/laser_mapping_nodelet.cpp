@@ -45,7 +45,7 @@ private:
   void registerWaiting();  // registers the newest waiting frame and publishes its pose
   void updateMap();        // the after-the-pose job
   void publishUpdate();    // adds the registered frame to the map and publishes the clouds
-  void closeLoops();       // loop closure, on the lane after the map update
+  void closeLoops();       // loop closure: a lane job of its own after the map update
   void publishClouds(const aloam::OdometryFrame& frame, const aloam::MappingResult& result);
   void report(diagnostic_updater::DiagnosticStatusWrapper& s);
   bool saveMapCb(SaveMap::Request& request, SaveMap::Response& response);
@@ -73,6 +73,8 @@ private:
   ros::ServiceServer save_map_srv_, save_trajectory_srv_, reset_srv_;
   std::unique_ptr<dynamic_reconfigure::Server<LaserMappingConfig>> reconfigure_server_;
   std::shared_ptr<aloam::Executor> executor_;  // this nodelet's threads, joined on unload
+  // Loop closure after the map update, on the lane only (updater_ requests it, so it is stopped after it).
+  aloam::Executor::Job looper_;
   // Runs updateMap() after the pose is out; declared last, so stopped first.
   aloam::Executor::Job updater_;
 };
@@ -115,6 +117,7 @@ void LaserMappingNodelet::onInit()
   reset_srv_ = pnh.advertiseService("reset", &LaserMappingNodelet::resetCb, this);
   monitor_.init(nh, pnh, name, [this](diagnostic_updater::DiagnosticStatusWrapper& s) { report(s); });
   updater_ = executor_->makeJob([this] { updateMap(); });
+  looper_ = executor_->makeJob([this] { closeLoops(); });
   frame_sub_ = nh.subscribe("laser_odom_frame", 5, &LaserMappingNodelet::frameCb, this);
 }
 
@@ -211,7 +214,7 @@ void LaserMappingNodelet::publishUpdate()
 void LaserMappingNodelet::updateMap()
 {
   publishUpdate();
-  closeLoops();
+  looper_.request();  // its own job: never run by the pose path (runIfPending runs the map update only)
   if (!waiting_.empty())
   {
     registerWaiting();  // mapping was behind: the newest frame that came meanwhile
