@@ -35,6 +35,26 @@ void centroidAndScatter(const Cloud& cloud, const std::vector<int>& index, Eigen
     scatter += d * d.transpose();
   }
 }
+
+// Moves a sweep's clouds (sensor frame; null: none) by `pose` into `map`, which merges them into its voxels.
+void insertSweep(CubeMap& map, const Cloud* corners, const Cloud* surfs, const Pose& pose)
+{
+  Cloud world;
+  for (const Cloud* cloud : { corners, surfs })
+  {
+    if (!cloud)
+    {
+      continue;
+    }
+    world.clear();
+    world.points.reserve(cloud->size());
+    for (const Point& p : cloud->points)
+    {
+      world.points.push_back(transformPoint(pose, p));
+    }
+    cloud == corners ? map.insertCorners(world) : map.insertSurfs(world);
+  }
+}
 }  // namespace
 
 LaserMapping::LaserMapping(LaserMappingConfig config, std::shared_ptr<Executor> executor)
@@ -199,24 +219,7 @@ MatchSolveResult LaserMapping::solve(Pose& pose, int outer_iterations, MappingRe
 
 void LaserMapping::insert(const Pose& pose)
 {
-  insertClouds(corner_stack_, surf_stack_, pose);
-}
-
-void LaserMapping::insertClouds(const Cloud& corners, const Cloud& surfs, const Pose& pose)
-{
-  Cloud world;
-  for (const bool is_corners : { true, false })
-  {
-    const Cloud& stack = is_corners ? corners : surfs;
-    world.clear();
-    world.points.reserve(stack.size());
-    for (const Point& p : stack.points)
-    {
-      world.points.push_back(transformPoint(pose, p));
-    }
-    // The map merges the points into its voxels (the leaf sizes of the configuration).
-    is_corners ? map_.insertCorners(world) : map_.insertSurfs(world);
-  }
+  insertSweep(map_, &corner_stack_, &surf_stack_, pose);
 }
 
 void LaserMapping::releaseHeldFirst(const OdometryFrame& frame)
@@ -359,7 +362,7 @@ void LaserMapping::updateMap(MappingResult& result)
 {
   if (pending_first_)
   {
-    insertClouds(first_corners_, first_surfs_, first_pose_);
+    insertSweep(map_, &first_corners_, &first_surfs_, first_pose_);
     pending_first_ = false;
   }
   if (pending_insert_)
@@ -378,27 +381,49 @@ void LaserMapping::updateMap(MappingResult& result)
   result.cubes = map_.cubeCount();
 }
 
+std::vector<Pose> poseGrid(const Pose& centre, double radius, double step, double yaw, double yaw_step)
+{
+  std::vector<Pose> starts;
+  const int n = step > 0.0 ? static_cast<int>(std::floor(radius / step + 1e-9)) : 0;
+  const int m = yaw_step > 0.0 ? static_cast<int>(std::floor(yaw / yaw_step + 1e-9)) : 0;
+  for (int i = -n; i <= n; ++i)
+  {
+    for (int j = -n; j <= n; ++j)
+    {
+      for (int k = -m; k <= m; ++k)
+      {
+        starts.emplace_back(Eigen::Quaterniond(Eigen::AngleAxisd(k * yaw_step, Eigen::Vector3d::UnitZ())) * centre.q,
+                            centre.t + Eigen::Vector3d(i * step, j * step, 0.0));
+      }
+    }
+  }
+  return starts;
+}
+
+std::vector<ScoredPose> LaserMapping::bestStarts(const Cloud& corners, const Cloud& surfs,
+                                                 const std::vector<Pose>& starts, double inlier_residual, int stride,
+                                                 int keep)
+{
+  std::vector<ScoredPose> scored;
+  scored.reserve(starts.size());
+  for (const Pose& start : starts)
+  {
+    prepareSubmapAround(start.t);
+    scored.push_back(ScoredPose{ start, fitness(corners, surfs, start, inlier_residual, stride).inlier_share });
+  }
+  const std::size_t n = std::min<std::size_t>(std::max(keep, 1), scored.size());
+  std::partial_sort(scored.begin(), scored.begin() + n, scored.end(),
+                    [](const ScoredPose& a, const ScoredPose& b) { return a.score > b.score; });
+  scored.resize(n);
+  return scored;
+}
+
 CubeMap LaserMapping::buildMap(const std::vector<MapSweep>& sweeps, const LaserMappingConfig& config)
 {
   CubeMap map(config.cube_size, config.corner_leaf_size, config.surf_leaf_size);
-  Cloud world;
   for (const MapSweep& sweep : sweeps)
   {
-    for (const bool is_corners : { true, false })
-    {
-      const auto& cloud = is_corners ? sweep.corners : sweep.surfs;
-      if (!cloud)
-      {
-        continue;
-      }
-      world.clear();
-      world.points.reserve(cloud->size());
-      for (const Point& p : cloud->points)
-      {
-        world.points.push_back(transformPoint(sweep.pose, p));
-      }
-      is_corners ? map.insertCorners(world) : map.insertSurfs(world);
-    }
+    insertSweep(map, sweep.corners.get(), sweep.surfs.get(), sweep.pose);
   }
   return map;
 }

@@ -11,14 +11,6 @@
 
 namespace aloam
 {
-namespace
-{
-Pose yawed(const Pose& pose, double yaw, const Eigen::Vector3d& shift)
-{
-  return Pose(Eigen::Quaterniond(Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ())) * pose.q, pose.t + shift);
-}
-}  // namespace
-
 const char* toString(LocalizationState state)
 {
   switch (state)
@@ -154,21 +146,7 @@ Localizer::Scored Localizer::registerFrom(const OdometryFrame& frame, const Pose
 
 std::vector<Pose> Localizer::gridAround(const Pose& centre, double radius, double yaw) const
 {
-  std::vector<Pose> starts;
-  const int n = config_.search_step > 0.0 ? static_cast<int>(std::floor(radius / config_.search_step + 1e-9)) : 0;
-  const int m = config_.search_yaw_step > 0.0 ? static_cast<int>(std::floor(yaw / config_.search_yaw_step + 1e-9)) : 0;
-  for (int i = -n; i <= n; ++i)
-  {
-    for (int j = -n; j <= n; ++j)
-    {
-      for (int k = -m; k <= m; ++k)
-      {
-        starts.push_back(yawed(centre, k * config_.search_yaw_step,
-                               Eigen::Vector3d(i * config_.search_step, j * config_.search_step, 0.0)));
-      }
-    }
-  }
-  return starts;
+  return poseGrid(centre, radius, config_.search_step, yaw, config_.search_yaw_step);
 }
 
 std::vector<Localizer::Scored> Localizer::bestCoarse(const OdometryFrame& frame, const std::vector<Pose>& starts,
@@ -183,20 +161,7 @@ std::vector<Localizer::Scored> Localizer::bestCoarse(const OdometryFrame& frame,
   {
     voxelDownsample(*frame.surfs, config_.mapping.surf_leaf_size, surfs);
   }
-  std::vector<Scored> coarse;
-  coarse.reserve(starts.size());
-  for (const Pose& start : starts)
-  {
-    mapping_.prepareSubmapAround(start.t);
-    const MatchFitness f =
-        mapping_.fitness(corners, surfs, start, config_.search_inlier_residual, config_.search_stride);
-    coarse.push_back(Scored{ start, f.inlier_share });
-  }
-  const std::size_t n = std::min<std::size_t>(std::max(keep, 1), coarse.size());
-  std::partial_sort(coarse.begin(), coarse.begin() + n, coarse.end(),
-                    [](const Scored& a, const Scored& b) { return a.score > b.score; });
-  coarse.resize(n);
-  return coarse;
+  return mapping_.bestStarts(corners, surfs, starts, config_.search_inlier_residual, config_.search_stride, keep);
 }
 
 Localizer::Scored Localizer::searchAmong(const OdometryFrame& frame, const std::vector<Pose>& starts, int refine,

@@ -5,6 +5,8 @@
 #include <cstdio>
 #include <numeric>
 
+#include <Eigen/Eigenvalues>
+
 #include "aloam_nodelet/core/voxel_filter.h"
 
 namespace aloam
@@ -33,6 +35,33 @@ std::size_t cloudBytes(const std::shared_ptr<const Cloud>& cloud)
   return cloud ? cloud->size() * sizeof(Point) : 0;
 }
 }  // namespace
+
+Eigen::Matrix<double, 6, 6> loopSqrtInformation(double sigma_translation, double sigma_rotation,
+                                                const std::vector<DegenerateDirection>& weak,
+                                                const Eigen::Quaterniond& relative, double lever_arm)
+{
+  using Matrix6 = Eigen::Matrix<double, 6, 6>;
+  using Vector6 = Eigen::Matrix<double, 6, 1>;
+  const Matrix6 root = sqrtInformation(sigma_translation, sigma_rotation);
+  Matrix6 information = root * root;
+  for (const DegenerateDirection& d : weak)
+  {
+    // The residual's change for a unit motion of `to` along d: translation seen from `from`, rotation in
+    // the frame of `to` (d's rotation part is the motion it gives a point lever_arm away).
+    Vector6 v;
+    v << relative * d.translation, d.rotation / lever_arm;
+    const Vector6 iv = information * v;
+    const double along = v.dot(iv);
+    if (!(along > 0.0))
+    {
+      continue;
+    }
+    const double keep = std::clamp(d.share, 0.0, 1.0);  // unknown share (< 0): none
+    information -= (1.0 - keep) * iv * iv.transpose() / along;
+  }
+  const Eigen::SelfAdjointEigenSolver<Matrix6> eig(0.5 * (information + information.transpose()));
+  return eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal() * eig.eigenvectors().transpose();
+}
 
 LoopClosure::LoopClosure(LoopClosureConfig config) : config_(std::move(config)) {}
 
@@ -159,9 +188,9 @@ LoopUpdate LoopClosure::addFrame(double stamp, const Pose& pose, const Cloud& co
     edge.from = keyframes_.size() - 1;
     edge.to = keyframes_.size();
     edge.measured = step;
-    const double length = step.t.norm();
-    edge.sigma.head<3>().setConstant(config_.odometry_sigma_translation * std::max(length, 0.1));
-    edge.sigma.tail<3>().setConstant(config_.odometry_sigma_rotation * std::max(length, 0.1));
+    const double length = std::max(step.t.norm(), 0.1);
+    edge.sqrt_information =
+        sqrtInformation(config_.odometry_sigma_translation * length, config_.odometry_sigma_rotation * length);
     graph_.addEdge(edge);
   }
   last_input_ = pose;
@@ -198,8 +227,9 @@ LoopUpdate LoopClosure::addFrame(double stamp, const Pose& pose, const Cloud& co
   edge.measured = loop.relative;
   edge.loop = true;
   const double residual = loop.fitness.mean_residual;
-  edge.sigma.head<3>().setConstant(std::max(config_.loop_sigma_translation, residual));
-  edge.sigma.tail<3>().setConstant(std::max(config_.loop_sigma_rotation, 0.1 * residual));
+  edge.sqrt_information = loopSqrtInformation(std::max(config_.loop_sigma_translation, residual),
+                                              std::max(config_.loop_sigma_rotation, 0.1 * residual), loop.weak,
+                                              loop.relative.q, config_.matching.constraint_lever_arm);
   graph_.addEdge(edge);
   loop_edges_.emplace_back(graph_.edges().size() - 1, history_.size() - 1);
   PoseGraphOptions options;
@@ -361,43 +391,16 @@ void LoopClosure::verify(LoopRecord& record) const
 
   // Where to start: the current estimate for a nearby candidate; for a descriptor candidate, the target's
   // position turned by the descriptor's yaw.
-  const Eigen::Quaterniond level = levelling(current.pose);
   Pose centre = current.pose;
   if (record.source == LoopSource::kDescriptor)
   {
     const ScanContextMatch m = current.descriptor.match(target.descriptor);
-    centre = yawed(yawOf(target.pose) + m.yaw, level, target.pose.t);
+    centre = yawed(yawOf(target.pose) + m.yaw, levelling(current.pose), target.pose.t);
   }
-  struct Scored
-  {
-    Pose pose;
-    double score;
-  };
-  std::vector<Scored> coarse;
-  const int n =
-      config_.coarse_step > 0.0 ? static_cast<int>(std::floor(config_.coarse_radius / config_.coarse_step + 1e-9)) : 0;
-  const int m = config_.coarse_yaw_step > 0.0
-                    ? static_cast<int>(std::floor(config_.coarse_yaw / config_.coarse_yaw_step + 1e-9))
-                    : 0;
-  const double centre_yaw = yawOf(centre);
-  for (int i = -n; i <= n; ++i)
-  {
-    for (int j = -n; j <= n; ++j)
-    {
-      for (int y = -m; y <= m; ++y)
-      {
-        const Pose start = yawed(centre_yaw + y * config_.coarse_yaw_step, level,
-                                 centre.t + Eigen::Vector3d(i * config_.coarse_step, j * config_.coarse_step, 0.0));
-        mapping.prepareSubmapAround(start.t);
-        const MatchFitness f =
-            mapping.fitness(*current.corners, *current.surfs, start, 2.0 * config_.inlier_residual, 4);
-        coarse.push_back(Scored{ start, f.inlier_share });
-      }
-    }
-  }
-  const std::size_t keep = std::min<std::size_t>(2, coarse.size());
-  std::partial_sort(coarse.begin(), coarse.begin() + keep, coarse.end(),
-                    [](const Scored& a, const Scored& b) { return a.score > b.score; });
+  const std::vector<ScoredPose> coarse = mapping.bestStarts(
+      *current.corners, *current.surfs,
+      poseGrid(centre, config_.coarse_radius, config_.coarse_step, config_.coarse_yaw, config_.coarse_yaw_step),
+      2.0 * config_.inlier_residual, 4, 2);
 
   OdometryFrame frame;
   frame.stamp = current.stamp;
@@ -406,9 +409,9 @@ void LoopClosure::verify(LoopRecord& record) const
   frame.surfs = current.surfs;
   bool registered = false;
   MappingResult best;
-  for (std::size_t i = 0; i < keep; ++i)
+  for (const ScoredPose& start : coarse)
   {
-    mapping.setCorrection(coarse[i].pose);  // frame.pose is the identity: the start is the prediction
+    mapping.setCorrection(start.pose);  // frame.pose is the identity: the start is the prediction
     const MappingResult r = mapping.registerFrame(frame);
     const MatchFitness f =
         mapping.fitness(mapping.registeredCorners(), mapping.registeredSurfs(), r.pose, config_.inlier_residual);
@@ -424,10 +427,17 @@ void LoopClosure::verify(LoopRecord& record) const
   const double path = current.path - target.path;
   const double max_move = config_.max_correction + config_.max_correction_rate * path;
   const double max_turn = config_.max_correction_angle + config_.max_correction_angle_rate * path;
-  if (best.status != MappingStatus::kOk)
+  // A loop that leaves a rotation weak would carry the current keyframe's attitude error into the map
+  // (corridor loops kept their roll error, docs/loop_closure.md); weak translations are accepted.
+  const bool partial =
+      best.status == MappingStatus::kRemapped &&
+      static_cast<int>(best.degenerate.size()) <= config_.max_weak_directions &&
+      std::none_of(best.degenerate.begin(), best.degenerate.end(),
+                   [](const DegenerateDirection& d) { return d.rotation.norm() > d.translation.norm(); });
+  if (best.status != MappingStatus::kOk && !partial)
   {
     record.reason = best.status == MappingStatus::kMapTooSmall ? "target submap too small"
-                    : best.status == MappingStatus::kRemapped  ? "registration degenerate along some direction"
+                    : best.status == MappingStatus::kRemapped  ? "registration degenerate: " + describe(best.degenerate)
                                                                : "registration degraded (too few matches)";
   }
   else if (record.fitness.inlier_share < config_.min_inlier_share)
@@ -452,6 +462,7 @@ void LoopClosure::verify(LoopRecord& record) const
   {
     record.accepted = true;
     record.relative = target.pose.inverse() * best.pose;
+    record.weak = best.degenerate;
   }
 }
 

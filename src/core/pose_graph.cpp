@@ -10,11 +10,11 @@ namespace aloam
 namespace
 {
 /// Residual of one edge: the translation and rotation by which the measured relative pose differs from
-/// the one between the two nodes, in the frame of `from`, divided by the sigmas.
+/// the one between the two nodes, in the frame of `from`, whitened by the square-root information.
 struct RelativePoseError
 {
-  RelativePoseError(const Pose& measured, const Eigen::Matrix<double, 6, 1>& sigma)
-    : q_measured(measured.q.normalized()), t_measured(measured.t), inv_sigma(sigma.cwiseInverse())
+  RelativePoseError(const Pose& measured, const Eigen::Matrix<double, 6, 6>& sqrt_information)
+    : q_measured(measured.q.normalized()), t_measured(measured.t), whiten(sqrt_information)
   {
   }
 
@@ -32,19 +32,25 @@ struct RelativePoseError
     const Eigen::Matrix<T, 3, 1> dt = t_rel - t_measured.cast<T>();
     // 2 * vec(q) is the rotation vector for small errors; the sign keeps the short way round.
     const T sign = q_err.w() < T(0) ? T(-1) : T(1);
-    for (int k = 0; k < 3; ++k)
-    {
-      residual[k] = dt[k] * T(inv_sigma[k]);
-      residual[3 + k] = T(2) * sign * q_err.vec()[k] * T(inv_sigma[3 + k]);
-    }
+    Eigen::Matrix<T, 6, 1> raw;
+    raw << dt, T(2) * sign * q_err.vec();
+    Eigen::Map<Eigen::Matrix<T, 6, 1>> whitened(residual);
+    whitened = whiten.cast<T>() * raw;
     return true;
   }
 
   Eigen::Quaterniond q_measured;
   Eigen::Vector3d t_measured;
-  Eigen::Matrix<double, 6, 1> inv_sigma;
+  Eigen::Matrix<double, 6, 6> whiten;
 };
 }  // namespace
+
+Eigen::Matrix<double, 6, 6> sqrtInformation(double sigma_translation, double sigma_rotation)
+{
+  Eigen::Matrix<double, 6, 1> inverse;
+  inverse << Eigen::Vector3d::Constant(1.0 / sigma_translation), Eigen::Vector3d::Constant(1.0 / sigma_rotation);
+  return inverse.asDiagonal();
+}
 
 std::size_t PoseGraph::addNode(const Pose& initial)
 {
@@ -58,9 +64,9 @@ void PoseGraph::addEdge(const PoseGraphEdge& edge)
   {
     throw std::invalid_argument("pose graph edge between unknown or equal nodes");
   }
-  if (!(edge.sigma.array() > 0.0).all() || !edge.measured.isFinite())
+  if (!edge.sqrt_information.allFinite() || !(edge.sqrt_information.squaredNorm() > 0.0) || !edge.measured.isFinite())
   {
-    throw std::invalid_argument("pose graph edge needs positive sigmas and a finite measurement");
+    throw std::invalid_argument("pose graph edge needs a finite, non-zero information and a finite measurement");
   }
   edges_.push_back(edge);
 }
@@ -68,7 +74,7 @@ void PoseGraph::addEdge(const PoseGraphEdge& edge)
 double PoseGraph::whitenedError(std::size_t edge) const
 {
   const PoseGraphEdge& e = edges_.at(edge);
-  const RelativePoseError error(e.measured, e.sigma);
+  const RelativePoseError error(e.measured, e.sqrt_information);
   double r[6];
   error(poses_[e.from].q.coeffs().data(), poses_[e.from].t.data(), poses_[e.to].q.coeffs().data(),
         poses_[e.to].t.data(), r);
@@ -90,8 +96,8 @@ bool PoseGraph::solve(std::vector<Pose>& poses, int max_iterations, double loop_
     {
       continue;
     }
-    auto* cost =
-        new ceres::AutoDiffCostFunction<RelativePoseError, 6, 4, 3, 4, 3>(new RelativePoseError(e.measured, e.sigma));
+    auto* cost = new ceres::AutoDiffCostFunction<RelativePoseError, 6, 4, 3, 4, 3>(
+        new RelativePoseError(e.measured, e.sqrt_information));
     ceres::LossFunction* loss = e.loop && loop_loss_scale > 0.0 ? new ceres::CauchyLoss(loop_loss_scale) : nullptr;
     problem.AddResidualBlock(cost, loss, poses[e.from].q.coeffs().data(), poses[e.from].t.data(),
                              poses[e.to].q.coeffs().data(), poses[e.to].t.data());

@@ -238,9 +238,10 @@ void LaserMappingNodelet::closeLoops()
   const aloam::LoopRecord& loop = step.update.tried.back();
   NODELET_INFO(
       "loop closed: keyframe %zu to %zu (%.1f s earlier), %.2f m / %.2f deg correction; graph %.1f ms, "
-      "map built in %.1f ms, swapped in in %.1f ms",
+      "map built in %.1f ms, swapped in in %.1f ms%s%s",
       loop.to, loop.from, loop.to_stamp - loop.from_stamp, loop.correction_m, loop.correction_rad * 180.0 / M_PI,
-      step.update.graph.ms, step.build_ms, step.rebuild_ms);
+      step.update.graph.ms, step.build_ms, step.rebuild_ms, loop.weak.empty() ? "" : "; weak along ",
+      loop.weak.empty() ? "" : aloam::describe(loop.weak).c_str());
   // The whole path moves with the corrected keyframes.
   const aloam::RecordedTrajectory corrected = session_->trajectory();
   outputs_.replacePath(corrected.poses, corrected.stamps);
@@ -322,6 +323,7 @@ void LaserMappingNodelet::reconfigureCb(const LaserMappingConfig& c)
   loop.search_radius = c.loop_search_radius;
   loop.min_inlier_share = c.loop_min_inlier_share;
   loop.max_mean_residual = c.loop_max_mean_residual;
+  loop.max_weak_directions = c.loop_max_weak_directions;
   loop.max_descriptor_distance = c.loop_max_descriptor_distance;
   session_->setLoopClosure(c.loop_closure, loop);
   // Waits for the frame being mapped; a new cube size re-buckets the map (no point is lost).

@@ -287,7 +287,10 @@ void writeLoops(const std::string& path, const aloam::LoopClosure& loops, const 
         << r.descriptor_distance << "\t" << r.correction_m << "\t" << r.correction_rad * 180.0 / M_PI << "\t"
         << std::setprecision(6) << r.relative.t.x() << "\t" << r.relative.t.y() << "\t" << r.relative.t.z() << "\t"
         << r.relative.q.x() << "\t" << r.relative.q.y() << "\t" << r.relative.q.z() << "\t" << r.relative.q.w() << "\t"
-        << (r.accepted ? "accepted" : r.reason) << "\n";
+        << (!r.accepted      ? r.reason
+            : r.weak.empty() ? "accepted"
+                             : "accepted, weak along " + aloam::describe(r.weak))
+        << "\n";
   }
 }
 

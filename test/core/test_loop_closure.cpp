@@ -56,8 +56,8 @@ Circle driftedCircle(int n, double radius, double yaw_bias)
     // Sigmas as LoopClosure gives odometry edges of this length.
     const LoopClosureConfig config;
     const double length = step.t.norm();
-    e.sigma << Eigen::Vector3d::Constant(config.odometry_sigma_translation * length),
-        Eigen::Vector3d::Constant(config.odometry_sigma_rotation * length);
+    e.sqrt_information =
+        sqrtInformation(config.odometry_sigma_translation * length, config.odometry_sigma_rotation * length);
     c.graph.addEdge(e);
   }
   return c;
@@ -83,7 +83,7 @@ TEST(PoseGraphTest, LoopEdgeRemovesTheDriftOfACircle)
   loop.to = 39;
   loop.measured = c.truth[0].inverse() * c.truth[39];
   loop.loop = true;
-  loop.sigma << Eigen::Vector3d::Constant(0.1), Eigen::Vector3d::Constant(0.01);
+  loop.sqrt_information = sqrtInformation(0.1, 0.01);
   c.graph.addEdge(loop);
   const PoseGraphSummary s = c.graph.optimize();
   ASSERT_TRUE(s.solved);
@@ -111,8 +111,8 @@ TEST(PoseGraphTest, AFalseLoopAmongTrueOnesIsLeftOut)
       e.to = to;
       e.measured = to == 39 ? c.truth[0].inverse() * c.truth[39] : measured;
       e.loop = true;
-      e.sigma << Eigen::Vector3d::Constant(LoopClosureConfig().loop_sigma_translation),
-          Eigen::Vector3d::Constant(LoopClosureConfig().loop_sigma_rotation);
+      e.sqrt_information =
+          sqrtInformation(LoopClosureConfig().loop_sigma_translation, LoopClosureConfig().loop_sigma_rotation);
       c.graph.addEdge(e);
     }
     PoseGraphOptions options;
@@ -145,9 +145,67 @@ TEST(PoseGraphTest, RejectsEdgesItCannotUse)
   e.to = 2;
   EXPECT_THROW(g.addEdge(e), std::invalid_argument);
   e.to = 1;
-  e.sigma[2] = 0.0;
+  e.sqrt_information.setZero();
+  EXPECT_THROW(g.addEdge(e), std::invalid_argument);
+  e.sqrt_information = Eigen::Matrix<double, 6, 6>::Identity();
+  e.sqrt_information(2, 2) = std::nan("");
   EXPECT_THROW(g.addEdge(e), std::invalid_argument);
   EXPECT_FALSE(g.optimize().solved);  // no edge: nothing to solve
+}
+
+TEST(PoseGraphTest, AWeakLoopDirectionCarriesOnlyItsShare)
+{
+  // Registered weak along the current keyframe's x (none of the constraint) and about its z (a quarter);
+  // the current keyframe is turned 90 deg from the target, so its x is the target's y.
+  DegenerateDirection along_x, about_z;
+  along_x.translation = Eigen::Vector3d::UnitX();
+  along_x.share = 0.0;
+  const double lever_arm = 3.0;
+  about_z.rotation = lever_arm * Eigen::Vector3d::UnitZ();
+  about_z.rotation.normalize();  // a unit 6-vector, as PoseProblem::degeneracy gives them
+  about_z.share = 0.25;
+  const Eigen::Quaterniond turned(Eigen::AngleAxisd(M_PI / 2.0, Eigen::Vector3d::UnitZ()));
+  const Eigen::Matrix<double, 6, 6> root = loopSqrtInformation(0.1, 0.01, { along_x, about_z }, turned, lever_arm);
+  const Eigen::Matrix<double, 6, 6> information = root.transpose() * root;
+  auto along = [&](const Eigen::Matrix<double, 6, 1>& v) { return v.dot(information * v); };
+  Eigen::Matrix<double, 6, 1> v;
+  v << 0.0, 1.0, 0.0, 0.0, 0.0, 0.0;  // the target's y: the current keyframe's x
+  EXPECT_NEAR(along(v), 0.0, 1e-6);
+  v << 1.0, 0.0, 0.0, 0.0, 0.0, 0.0;
+  EXPECT_NEAR(along(v), 100.0, 1e-6);
+  v << 0.0, 0.0, 1.0, 0.0, 0.0, 0.0;
+  EXPECT_NEAR(along(v), 100.0, 1e-6);
+  v << 0.0, 0.0, 0.0, 0.0, 0.0, 1.0;  // yaw: a quarter of 1 / 0.01^2
+  EXPECT_NEAR(along(v), 0.25 * 1e4, 1e-3);
+  v << 0.0, 0.0, 0.0, 1.0, 0.0, 0.0;
+  EXPECT_NEAR(along(v), 1e4, 1e-3);
+  // Nothing weak: the plain sigmas.
+  EXPECT_TRUE(loopSqrtInformation(0.1, 0.01, {}, turned, lever_arm).isApprox(sqrtInformation(0.1, 0.01), 1e-9));
+
+  // In a graph, such a loop holds the directions it knows and leaves the weak one to the odometry: a chain
+  // drifted 2 m along the target's y and 1 m along z is pulled back along z only.
+  PoseGraph graph;
+  graph.addNode(Pose());
+  graph.addNode(Pose(turned, Eigen::Vector3d(10.0, 2.0, 1.0)));
+  PoseGraphEdge odometry;
+  odometry.from = 0;
+  odometry.to = 1;
+  odometry.measured = Pose(turned, Eigen::Vector3d(10.0, 2.0, 1.0));
+  odometry.sqrt_information = sqrtInformation(1.0, 0.01);
+  graph.addEdge(odometry);
+  PoseGraphEdge loop;
+  loop.from = 0;
+  loop.to = 1;
+  loop.loop = true;
+  loop.measured = Pose(turned, Eigen::Vector3d(10.0, 0.0, 0.0));
+  loop.sqrt_information = root;
+  graph.addEdge(loop);
+  PoseGraphOptions options;
+  options.loop_loss_scale = 0.0;
+  ASSERT_TRUE(graph.optimize(options).solved);
+  EXPECT_NEAR(graph.pose(1).t.y(), 2.0, 1e-3);   // the weak direction: as odometry has it
+  EXPECT_NEAR(graph.pose(1).t.z(), 0.01, 0.01);  // pulled to the loop (1 m odometry sigma against 0.1)
+  EXPECT_NEAR(graph.pose(1).t.x(), 10.0, 1e-3);
 }
 
 // Edge and plane features of one noise-free sweep of the street.

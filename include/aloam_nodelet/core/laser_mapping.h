@@ -122,6 +122,17 @@ struct MapSweep
   Pose pose;  ///< map <- sensor
 };
 
+/// A start pose and how well a sweep fits the map from there (inlier share).
+struct ScoredPose
+{
+  Pose pose;
+  double score = 0.0;
+};
+
+/// The starts of a coarse search: positions within +-radius of `centre` (step apart) along the map's x and y,
+/// each turned within +-yaw (yaw_step apart) about the map's z.
+std::vector<Pose> poseGrid(const Pose& centre, double radius, double step, double yaw, double yaw_step);
+
 class LaserMapping
 {
 public:
@@ -176,6 +187,10 @@ public:
   /// The fit of sensor-frame clouds at `pose` against the current submap, every `stride`th point.
   MatchFitness fitness(const Cloud& corners, const Cloud& surfs, const Pose& pose, double inlier_residual,
                        int stride = 1) const;
+  /// The `keep` starts (at least one) from which the sensor-frame clouds fit the map best, best first: the
+  /// inlier share within inlier_residual of every `stride`th point, in the submap around each start.
+  std::vector<ScoredPose> bestStarts(const Cloud& corners, const Cloud& surfs, const std::vector<Pose>& starts,
+                                     double inlier_residual, int stride, int keep);
   /// The downsampled clouds of the last registerFrame().
   const Cloud& registeredCorners() const { return corner_stack_; }
   const Cloud& registeredSurfs() const { return surf_stack_; }
@@ -224,7 +239,6 @@ private:
   Pose first_pose_;
   bool pending_first_ = false;
 
-  void insertClouds(const Cloud& corners, const Cloud& surfs, const Pose& pose);
   /// Deskews the held first sweep with `frame`'s motion and queues it for updateMap().
   void releaseHeldFirst(const OdometryFrame& frame);
 

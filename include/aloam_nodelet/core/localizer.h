@@ -141,11 +141,7 @@ private:
   int outer_iterations_ = 0;  ///< what mapping_'s configuration holds now
   std::vector<Eigen::Vector3d> global_positions_;
 
-  struct Scored
-  {
-    Pose pose;
-    double score = 0.0;
-  };
+  using Scored = ScoredPose;
   void useOuterIterations(int outer);
   bool fits(const MatchFitness& f, bool localized) const;
   /// Registers `frame` from `start` (map <- sensor) and scores the result with the full fitness.
@@ -154,7 +150,7 @@ private:
   std::vector<Scored> bestCoarse(const OdometryFrame& frame, const std::vector<Pose>& starts, int keep);
   /// Best pose among `starts` (coarse scores, the best `refine` registered); counts candidates.
   Scored searchAmong(const OdometryFrame& frame, const std::vector<Pose>& starts, int refine, int& candidates);
-  /// Positions within +-radius (search_step apart) x yaws within +-yaw (search_yaw_step apart) of `centre`.
+  /// poseGrid() around `centre` with the search steps.
   std::vector<Pose> gridAround(const Pose& centre, double radius, double yaw) const;
   std::vector<Pose> globalStarts() const;
   void setGlobalCandidates(const MapData& map);

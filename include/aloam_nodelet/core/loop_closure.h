@@ -54,6 +54,11 @@ struct LoopClosureConfig
   double inlier_residual = 0.2;
   double min_inlier_share = 0.35;
   double max_mean_residual = 0.1;
+  /// A registration weak along at most this many directions, each mostly a translation (mapping's
+  /// MappingStatus::kRemapped, such as a corridor's axis), is accepted too; its loop edge carries along each
+  /// weak direction only that direction's share of the constraint (loopSqrtInformation). A weak rotation is
+  /// always rejected. 0: only fully constrained registrations.
+  int max_weak_directions = 2;
   /// The correction a loop implies must be one that drift could have made over the path between the two
   /// keyframes: at most max_correction + max_correction_rate * path (m), and the rotation at most
   /// max_correction_angle + max_correction_angle_rate * path (rad). Rejects look-alike places far away.
@@ -108,6 +113,8 @@ struct LoopRecord
   double correction_m = 0.0;    ///< how far the loop moves the current keyframe (m)
   double correction_rad = 0.0;  ///< ... and turns it
   Pose relative;                ///< from <- to, as registered (accepted loops)
+  /// Directions the registration constrained only weakly, in the frame of `to` (accepted loops).
+  std::vector<DegenerateDirection> weak;
 };
 
 /// What one offered frame did.
@@ -135,6 +142,14 @@ struct LoopClosureStats
   std::size_t optimizations = 0;
   double last_optimize_ms = 0.0;
 };
+
+/// A loop edge's square-root information (PoseGraphEdge): the sigmas (translation m, rotation rad) along
+/// the directions the registration constrained; along each weak one (in the frame of `to`, rotation parts as
+/// the motion at `lever_arm` metres) only its share of that information, none where the share is unknown.
+/// `relative`: the loop's rotation from <- to.
+Eigen::Matrix<double, 6, 6> loopSqrtInformation(double sigma_translation, double sigma_rotation,
+                                                const std::vector<DegenerateDirection>& weak,
+                                                const Eigen::Quaterniond& relative, double lever_arm);
 
 class LoopClosure
 {

@@ -17,12 +17,17 @@ struct PoseGraphEdge
   std::size_t from = 0;
   std::size_t to = 0;
   Pose measured;  ///< from <- to: the pose of `to` in the frame of `from`
-  /// Standard deviations of the measurement: translation x y z (m) in the frame of `from`, then rotation
-  /// about x y z (rad). The residual is divided by them (a diagonal information matrix).
-  Eigen::Matrix<double, 6, 1> sigma = Eigen::Matrix<double, 6, 1>::Constant(0.1);
+  /// Square root of the measurement's information: the residual (translation x y z in m, in the frame of
+  /// `from`, then the rotation vector in rad) is multiplied by it. sqrtInformation(sigmas) gives the
+  /// diagonal case; a loop registered with a weak direction carries less information along it.
+  Eigen::Matrix<double, 6, 6> sqrt_information = Eigen::Matrix<double, 6, 6>::Identity() * 10.0;
   bool loop = false;    ///< loop edges get the robust loss and the consistency check
   bool enabled = true;  ///< false: left out of every solve (a loop found inconsistent with the others)
 };
+
+/// The square-root information of independent errors with these standard deviations, the same along x y z:
+/// translation (m) and rotation (rad).
+Eigen::Matrix<double, 6, 6> sqrtInformation(double sigma_translation, double sigma_rotation);
 
 struct PoseGraphSummary
 {
@@ -62,7 +67,7 @@ public:
   const Pose& pose(std::size_t i) const { return poses_[i]; }
   void setPose(std::size_t i, const Pose& pose) { poses_[i] = pose; }
   const std::vector<PoseGraphEdge>& edges() const { return edges_; }
-  /// The edge's residual at the current poses, divided by its sigmas (norm of the 6-vector).
+  /// The edge's residual at the current poses, whitened by its information (norm of the 6-vector).
   double whitenedError(std::size_t edge) const;
   void clear();
 
