@@ -52,6 +52,7 @@ run_check tools/check_offline_kitti.sh "$bin" "$ALOAM_DATA/kitti00_101" "$checks
 run_check tools/check_localization_kitti.sh "$bin" "$ALOAM_DATA/kitti00_101" "$checks_out/localization_kitti"
 run_check tools/check_hard_cases.sh "$bin" "$checks_out/hard_cases"
 run_check tools/check_loops.sh "$bin" "$checks_out/loops"
+run_check tools/check_graph.sh "$bin" "$checks_out/graph"
 run_check fuzz/run_fuzz.sh "$checks_out/fuzz" 45
 run_check sanitize/run_sanitized_core_tests.sh "$checks_out/sanitize"
 run_check sanitize/run_tsan_core_tests.sh "$checks_out/tsan_core"

@@ -81,6 +81,8 @@ void LaserMapping::reset()
   pending_first_ = false;
   correction_ = Pose();
   evicted_total_ = 0;
+  run_started_ = false;
+  continued_ = false;
 }
 
 template <typename Search>
@@ -312,7 +314,10 @@ MappingResult LaserMapping::registerFrame(const OdometryFrame& frame)
   {
     prepareSubmap(centre);
   }
-  if (static_cast<int>(submap_corners_.size()) >= config_.min_map_corners &&
+  // Over a loaded map (startIn), a distorted first sweep keeps the prediction and stays out of the map:
+  // undeskewed, it would bias its own pose and blur the map; the next sweep registers.
+  const bool skip_first = frame.distorted && continued_ && !run_started_;
+  if (!skip_first && static_cast<int>(submap_corners_.size()) >= config_.min_map_corners &&
       static_cast<int>(submap_surfs_.size()) >= config_.min_map_surfs)
   {
     const bool hard = frame.hard() && frame.status != OdometryStatus::kInitialized;
@@ -342,8 +347,9 @@ MappingResult LaserMapping::registerFrame(const OdometryFrame& frame)
   // A distorted first sweep would warp the map every later sweep registers against: it waits for the
   // next sweep's motion (deskew_first_late), or the map starts with the first sweep whose motion is known.
   pending_insert_ = !(frame.distorted && map_.cubeCount() == 0 && !config_.insert_distorted_first);
+  run_started_ = true;
   pending_pose_ = pose;
-  if (frozen_)
+  if (frozen_ || skip_first)
   {
     pending_insert_ = false;
   }
@@ -438,6 +444,16 @@ void LaserMapping::replaceMap(CubeMap map, const Pose& change)
   map_ = std::move(map);
   correction_ = change * correction_;
   pending_pose_ = change * pending_pose_;
+  prepareSubmap(map_.indexOf(pending_pose_.t));
+}
+
+void LaserMapping::startIn(CubeMap map, const Pose& correction)
+{
+  reset();
+  continued_ = true;
+  map_ = std::move(map);
+  correction_ = correction;
+  pending_pose_ = correction;
   prepareSubmap(map_.indexOf(pending_pose_.t));
 }
 

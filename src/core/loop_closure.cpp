@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cstdio>
 #include <numeric>
+#include <stdexcept>
 
 #include <Eigen/Eigenvalues>
 
@@ -63,6 +64,36 @@ Eigen::Matrix<double, 6, 6> loopSqrtInformation(double sigma_translation, double
   return eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal() * eig.eigenvectors().transpose();
 }
 
+const char* toString(LoopSource source)
+{
+  switch (source)
+  {
+    case LoopSource::kNearby:
+      return "nearby";
+    case LoopSource::kDescriptor:
+      return "descriptor";
+    case LoopSource::kSessionStart:
+      return "session start";
+  }
+  return "?";
+}
+
+const char* toString(SessionTie tie)
+{
+  switch (tie)
+  {
+    case SessionTie::kNone:
+      return "none";
+    case SessionTie::kPending:
+      return "pending";
+    case SessionTie::kTied:
+      return "tied";
+    case SessionTie::kNotTied:
+      return "not tied";
+  }
+  return "?";
+}
+
 LoopClosure::LoopClosure(LoopClosureConfig config) : config_(std::move(config)) {}
 
 void LoopClosure::setConfig(const LoopClosureConfig& config)
@@ -81,11 +112,106 @@ void LoopClosure::reset()
   last_loop_path_ = -1.0;
   optimizations_ = 0;
   last_optimize_ms_ = 0.0;
+  session_ = 0;
+  session_begin_ = 0;
+  tie_record_ = SIZE_MAX;
+}
+
+LoopGraph LoopClosure::exportGraph() const
+{
+  LoopGraph out;
+  out.keyframes = keyframes_;
+  out.edges = graph_.edges();
+  out.descriptor = config_.descriptor;
+  out.keyframe_corner_leaf = config_.keyframe_corner_leaf;
+  out.keyframe_surf_leaf = config_.keyframe_surf_leaf;
+  return out;
+}
+
+std::vector<std::string> LoopClosure::importGraph(LoopGraph graph)
+{
+  // Everything is checked before anything changes.
+  int last_session = -1;
+  for (std::size_t i = 0; i < graph.keyframes.size(); ++i)
+  {
+    const Keyframe& k = graph.keyframes[i];
+    if (!k.pose.isFinite() || !std::isfinite(k.stamp) || !std::isfinite(k.path) || k.session < 0 ||
+        std::fabs(k.pose.q.norm() - 1.0) > 1e-3)
+    {
+      throw std::invalid_argument("keyframe " + std::to_string(i) + " has a non-finite or invalid pose");
+    }
+    last_session = std::max(last_session, k.session);
+  }
+  for (std::size_t i = 0; i < graph.edges.size(); ++i)
+  {
+    const PoseGraphEdge& e = graph.edges[i];
+    if (e.from >= graph.keyframes.size() || e.to >= graph.keyframes.size() || e.from == e.to || !e.isUsable())
+    {
+      throw std::invalid_argument("edge " + std::to_string(i) +
+                                  " joins unknown keyframes or has an invalid measurement");
+    }
+  }
+  std::vector<std::string> warnings;
+  reset();
+  const auto same = [](const ScanContextConfig& a, const ScanContextConfig& b)
+  { return a.rings == b.rings && a.sectors == b.sectors && a.max_range == b.max_range && a.lift == b.lift; };
+  if (!same(graph.descriptor, config_.descriptor))
+  {
+    // The whole sweeps the descriptors were made from are gone: the keyframe clouds stand in for them.
+    for (Keyframe& k : graph.keyframes)
+    {
+      k.descriptor = k.corners || k.surfs
+                         ? ScanContext::compute(k.corners ? *k.corners : Cloud(), k.surfs ? *k.surfs : Cloud(), k.pose,
+                                                config_.descriptor)
+                         : ScanContext();
+    }
+    warnings.push_back("the graph's place descriptors were made with other settings: remade from the keyframe clouds");
+  }
+  if (graph.keyframe_corner_leaf != config_.keyframe_corner_leaf ||
+      graph.keyframe_surf_leaf != config_.keyframe_surf_leaf)
+  {
+    char text[200];
+    std::snprintf(text, sizeof(text), "the graph's keyframe clouds have voxel leaves %.2f / %.2f m (now %.2f / %.2f m)",
+                  graph.keyframe_corner_leaf, graph.keyframe_surf_leaf, config_.keyframe_corner_leaf,
+                  config_.keyframe_surf_leaf);
+    warnings.push_back(text);
+  }
+  keyframes_ = std::move(graph.keyframes);
+  for (Keyframe& k : keyframes_)
+  {
+    k.pose.q.normalize();
+    graph_.addNode(k.pose);
+  }
+  for (const PoseGraphEdge& e : graph.edges)
+  {
+    graph_.addEdge(e);
+  }
+  session_ = last_session + 1;
+  session_begin_ = keyframes_.size();
+  dropOldClouds();
+  return warnings;
+}
+
+std::size_t LoopClosure::nearestLoaded(const Eigen::Vector3d& position, bool with_clouds) const
+{
+  std::size_t nearest = keyframes_.size();
+  double best = 0.0;
+  for (std::size_t i = 0; i < session_begin_; ++i)
+  {
+    const Keyframe& k = keyframes_[i];
+    const double d = (k.pose.t - position).norm();
+    if ((!with_clouds || k.corners || k.surfs) && (nearest == keyframes_.size() || d < best))
+    {
+      nearest = i;
+      best = d;
+    }
+  }
+  return nearest;
 }
 
 bool LoopClosure::isKeyframe(const Pose& pose) const
 {
-  if (keyframes_.empty())
+  if (keyframes_.size() == session_begin_)
   {
     return true;
   }
@@ -95,8 +221,8 @@ bool LoopClosure::isKeyframe(const Pose& pose) const
 
 bool LoopClosure::separated(const Keyframe& a, const Keyframe& b) const
 {
-  return std::fabs(a.stamp - b.stamp) >= config_.min_loop_separation_time &&
-         std::fabs(a.path - b.path) >= config_.min_loop_separation_path;
+  return a.session != b.session || (std::fabs(a.stamp - b.stamp) >= config_.min_loop_separation_time &&
+                                    std::fabs(a.path - b.path) >= config_.min_loop_separation_path);
 }
 
 void LoopClosure::dropOldClouds()
@@ -117,6 +243,17 @@ LoopClosureStats LoopClosure::stats() const
 {
   LoopClosureStats s;
   s.keyframes = keyframes_.size();
+  s.keyframes_loaded = session_begin_;
+  if (session_begin_ > 0)
+  {
+    s.tie = SessionTie::kPending;
+    if (tie_record_ < history_.size())
+    {
+      const LoopRecord& tie = history_[tie_record_];
+      s.tie = tie.accepted ? SessionTie::kTied : SessionTie::kNotTied;
+      s.tie_reason = tie.accepted ? "keyframe " + std::to_string(tie.from) : tie.reason;
+    }
+  }
   for (const Keyframe& k : keyframes_)
   {
     s.keyframes_with_clouds += k.corners || k.surfs;
@@ -147,9 +284,10 @@ std::vector<MapSweep> LoopClosure::mapSweeps() const
 
 std::size_t LoopClosure::keyframeAt(double stamp) const
 {
-  const auto it = std::upper_bound(keyframes_.begin(), keyframes_.end(), stamp,
-                                   [](double s, const Keyframe& k) { return s < k.stamp; });
-  return it == keyframes_.begin() ? 0 : static_cast<std::size_t>(it - keyframes_.begin()) - 1;
+  const auto begin = keyframes_.begin() + static_cast<std::ptrdiff_t>(session_begin_);
+  const auto it =
+      std::upper_bound(begin, keyframes_.end(), stamp, [](double s, const Keyframe& k) { return s < k.stamp; });
+  return it == begin ? session_begin_ : static_cast<std::size_t>(it - keyframes_.begin()) - 1;
 }
 
 LoopUpdate LoopClosure::addFrame(double stamp, const Pose& pose, const Cloud& corners, const Cloud& surfs,
@@ -171,10 +309,26 @@ LoopUpdate LoopClosure::addFrame(double stamp, const Pose& pose, const Cloud& co
   k.surfs = s;
   k.descriptor = sweep ? ScanContext::compute(*sweep, Cloud(), pose, config_.descriptor)
                        : ScanContext::compute(*c, *s, pose, config_.descriptor);
-  if (keyframes_.empty())
+  k.session = session_;
+  const bool run_start = keyframes_.size() == session_begin_;
+  if (run_start)
   {
     k.pose = pose;
     graph_.addNode(pose);
+    // Over a loaded graph: the anchor, where the run's initial pose and its first registrations put this
+    // keyframe relative to the nearest loaded one. Keeps the graph one piece (the first node alone is
+    // fixed) even when the tie below fails; its sigmas are loose, so any verified loop outweighs it.
+    const std::size_t near = nearestLoaded(pose.t, false);
+    if (near < keyframes_.size())
+    {
+      PoseGraphEdge anchor;
+      anchor.from = near;
+      anchor.to = keyframes_.size();
+      anchor.measured = keyframes_[near].pose.inverse() * pose;
+      anchor.sqrt_information =
+          sqrtInformation(config_.session_anchor_sigma_translation, config_.session_anchor_sigma_rotation);
+      graph_.addEdge(anchor);
+    }
   }
   else
   {
@@ -204,11 +358,28 @@ LoopUpdate LoopClosure::addFrame(double stamp, const Pose& pose, const Cloud& co
   }
   const auto start = std::chrono::steady_clock::now();
   std::vector<LoopRecord> found = candidates();
+  const bool tie = run_start && session_begin_ > 0;
+  if (tie && found.empty())
+  {
+    LoopRecord none;
+    none.to = none.from = keyframes_.size() - 1;
+    none.to_stamp = none.from_stamp = current.stamp;
+    none.source = LoopSource::kSessionStart;
+    none.reason = "no loaded keyframe has clouds to register against";
+    found.push_back(none);
+  }
   for (LoopRecord& record : found)
   {
-    verify(record);
+    if (record.from != record.to)
+    {
+      verify(record);
+    }
     update.tried.push_back(record);
     history_.push_back(record);
+    if (tie)
+    {
+      tie_record_ = history_.size() - 1;
+    }
     if (record.accepted)
     {
       break;  // one loop per keyframe
@@ -285,6 +456,19 @@ std::vector<LoopRecord> LoopClosure::candidates() const
     r.descriptor_distance = descriptor_distance;
     return r;
   };
+
+  // A run over a loaded graph starts with one candidate: its first keyframe against the nearest loaded
+  // keyframe, wherever it is (the run's initial pose says the two are in one frame).
+  if (current_index == session_begin_ && session_begin_ > 0)
+  {
+    const std::size_t target = nearestLoaded(current.pose.t, true);
+    if (target < current_index)
+    {
+      out.push_back(
+          record(target, LoopSource::kSessionStart, current.descriptor.match(keyframes_[target].descriptor).distance));
+    }
+    return out;
+  }
 
   // Nearby: the closest keyframe to the current estimate, within a radius that grows with the path
   // travelled since the last loop (the drift that may have built up).
@@ -424,7 +608,9 @@ void LoopClosure::verify(LoopRecord& record) const
   }
   record.correction_m = (best.pose.t - current.pose.t).norm();
   record.correction_rad = rotationAngle(current.pose.q.conjugate() * best.pose.q);
-  const double path = current.path - target.path;
+  // The drift a loop may correct grows with the path between the two keyframes; across runs, with the path
+  // of the current run since its start (where its initial pose placed it in the loaded map).
+  const double path = current.session == target.session ? current.path - target.path : current.path;
   const double max_move = config_.max_correction + config_.max_correction_rate * path;
   const double max_turn = config_.max_correction_angle + config_.max_correction_angle_rate * path;
   // A loop that leaves a rotation weak would carry the current keyframe's attitude error into the map

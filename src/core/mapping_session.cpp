@@ -1,6 +1,7 @@
 #include "aloam_nodelet/core/mapping_session.h"
 
 #include <chrono>
+#include <stdexcept>
 #include <utility>
 
 namespace aloam
@@ -31,6 +32,57 @@ void MappingSession::setLoopClosure(bool enabled, const LoopClosureConfig& confi
   loops_.setConfig(config);
   std::lock_guard<std::mutex> lock(core_mutex_);
   loop_enabled_ = enabled;
+}
+
+bool MappingSession::loopClosureEnabled() const
+{
+  std::lock_guard<std::mutex> lock(core_mutex_);
+  return loop_enabled_;
+}
+
+std::vector<std::string> MappingSession::loadGraph(LoopGraph graph, const Pose& initial)
+{
+  std::lock_guard<std::mutex> loop(loop_mutex_);
+  LaserMappingConfig config;
+  {
+    std::lock_guard<std::mutex> lock(core_mutex_);
+    if (!loop_enabled_)
+    {
+      throw std::logic_error("loop closure is off: a saved graph needs it");
+    }
+    config = mapping_.config();
+  }
+  if (!initial.isFinite())
+  {
+    throw std::invalid_argument("the initial pose is not finite");
+  }
+  std::vector<std::string> warnings = loops_.importGraph(std::move(graph));  // throws before changing anything
+  // As after an accepted loop: the map is built off the core lock and swapped in under it.
+  CubeMap map = LaserMapping::buildMap(loops_.mapSweeps(), config);
+  std::lock_guard<std::mutex> lock(core_mutex_);
+  if (mapping_.config().cube_size != config.cube_size ||
+      mapping_.config().corner_leaf_size != config.corner_leaf_size ||
+      mapping_.config().surf_leaf_size != config.surf_leaf_size)
+  {
+    map = LaserMapping::buildMap(loops_.mapSweeps(), mapping_.config());  // reconfigured meanwhile
+  }
+  // A new map and trajectory, as resetLocked() starts them, but the loop closure keeps what it loaded.
+  resetLocked();
+  loop_reset_pending_ = false;
+  mapping_.startIn(std::move(map), initial);
+  stats_.loops = loops_.stats();
+  {
+    std::lock_guard<std::mutex> admission(admission_mutex_);
+    correction_ = initial;
+    reset_pending_ = false;
+  }
+  return warnings;
+}
+
+LoopGraph MappingSession::exportGraph() const
+{
+  std::lock_guard<std::mutex> loop(loop_mutex_);
+  return loops_.exportGraph();
 }
 
 LoopStep MappingSession::closeLoops()
@@ -88,8 +140,9 @@ LoopStep MappingSession::closeLoops()
     std::lock_guard<std::mutex> admission(admission_mutex_);
     correction_ = mapping_.correction();
   }
-  // Every recorded pose follows the newest keyframe at or before it (the first keyframe, which the graph
-  // holds fixed, for the poses before it), as the graph moved that keyframe.
+  // Every recorded pose follows the newest keyframe of this run at or before it (the run's first keyframe
+  // for the poses before it: the graph holds it fixed unless the run continues a loaded graph), as the graph
+  // moved that keyframe.
   for (std::size_t i = 0; i < trajectory_.poses.size(); ++i)
   {
     const std::size_t k = loops_.keyframeAt(trajectory_.stamps[i]);

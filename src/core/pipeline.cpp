@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <stdexcept>
 
 namespace aloam
 {
@@ -53,6 +54,23 @@ void Pipeline::reset()
   {
     loop_->reset();
   }
+}
+
+std::vector<std::string> Pipeline::loadGraph(LoopGraph graph, const Pose& initial)
+{
+  if (!loop_)
+  {
+    throw std::logic_error("loop closure is off: a saved graph needs it");
+  }
+  if (!initial.isFinite())
+  {
+    throw std::invalid_argument("the initial pose is not finite");
+  }
+  std::vector<std::string> warnings = loop_->importGraph(std::move(graph));  // throws before changing anything
+  odometry_.reset();
+  stamps_.reset();
+  mapping_.startIn(LaserMapping::buildMap(loop_->mapSweeps(), mapping_.config()), initial);
+  return warnings;
 }
 
 bool Pipeline::track(const Cloud& cloud, double stamp, bool has_ring, bool has_time, PipelineOutput& out)

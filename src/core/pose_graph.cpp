@@ -58,13 +58,18 @@ std::size_t PoseGraph::addNode(const Pose& initial)
   return poses_.size() - 1;
 }
 
+bool PoseGraphEdge::isUsable() const
+{
+  return measured.isFinite() && sqrt_information.allFinite() && sqrt_information.squaredNorm() > 0.0;
+}
+
 void PoseGraph::addEdge(const PoseGraphEdge& edge)
 {
   if (edge.from >= poses_.size() || edge.to >= poses_.size() || edge.from == edge.to)
   {
     throw std::invalid_argument("pose graph edge between unknown or equal nodes");
   }
-  if (!edge.sqrt_information.allFinite() || !(edge.sqrt_information.squaredNorm() > 0.0) || !edge.measured.isFinite())
+  if (!edge.isUsable())
   {
     throw std::invalid_argument("pose graph edge needs a finite, non-zero information and a finite measurement");
   }

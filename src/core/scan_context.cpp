@@ -19,10 +19,8 @@ Eigen::Quaterniond levelling(const Pose& pose)
 ScanContext ScanContext::compute(const Cloud& corners, const Cloud& surfs, const Pose& pose,
                                  const ScanContextConfig& config)
 {
-  ScanContext sc;
   const int rings = std::max(config.rings, 1), sectors = std::max(config.sectors, 1);
-  sc.sectors_ = sectors;
-  sc.cells_ = Eigen::MatrixXf::Zero(rings, sectors);
+  Eigen::MatrixXf cells = Eigen::MatrixXf::Zero(rings, sectors);
   const Eigen::Matrix3d level = levelling(pose).toRotationMatrix();
   for (const Cloud* cloud : { &corners, &surfs })
   {
@@ -37,12 +35,24 @@ ScanContext ScanContext::compute(const Cloud& corners, const Cloud& surfs, const
       const int ring = std::min(rings - 1, static_cast<int>(range / config.max_range * rings));
       const double azimuth = std::atan2(v.y(), v.x()) + M_PI;  // [0, 2 pi]
       const int sector = std::min(sectors - 1, static_cast<int>(azimuth / (2.0 * M_PI) * sectors));
-      float& cell = sc.cells_(ring, sector);
+      float& cell = cells(ring, sector);
       cell = std::max(cell, static_cast<float>(std::max(0.0, v.z() + config.lift)));
     }
   }
-  sc.ring_key_ = sc.cells_.rowwise().mean();
-  sc.column_norms_ = sc.cells_.colwise().norm().transpose();
+  return fromCells(cells);
+}
+
+ScanContext ScanContext::fromCells(const Eigen::MatrixXf& cells)
+{
+  ScanContext sc;
+  if (cells.size() == 0)
+  {
+    return sc;
+  }
+  sc.sectors_ = static_cast<int>(cells.cols());
+  sc.cells_ = cells;
+  sc.ring_key_ = cells.rowwise().mean();
+  sc.column_norms_ = cells.colwise().norm().transpose();
   return sc;
 }
 

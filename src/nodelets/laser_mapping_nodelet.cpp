@@ -3,6 +3,7 @@
 // thread, unless mapping is behind: then the newest waiting frame is registered after the map update in
 // progress and older ones are skipped (and counted). After the mapped pose is out, the map update (adding the
 // frame, indexing the next submap) runs as the stage's after-the-pose job. README "Threads" has the picture.
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <memory>
@@ -15,11 +16,14 @@
 #include <std_srvs/Trigger.h>
 
 #include <aloam_nodelet/LaserMappingConfig.h>
+#include <aloam_nodelet/SaveGraph.h>
 #include <aloam_nodelet/SaveMap.h>
 #include <aloam_nodelet/SaveTrajectory.h>
 
 #include "aloam_nodelet/core/executor.h"
+#include "aloam_nodelet/core/graph_file.h"
 #include "aloam_nodelet/core/latest_slot.h"
+#include "aloam_nodelet/core/localizer.h"
 #include "aloam_nodelet/core/map_file.h"
 #include "aloam_nodelet/core/mapping_session.h"
 #include "aloam_nodelet/eval/trajectory_io.h"
@@ -49,6 +53,9 @@ private:
   void publishClouds(const aloam::OdometryFrame& frame, const aloam::MappingResult& result);
   void report(diagnostic_updater::DiagnosticStatusWrapper& s);
   bool saveMapCb(SaveMap::Request& request, SaveMap::Response& response);
+  bool saveGraphCb(SaveGraph::Request& request, SaveGraph::Response& response);
+  void loadGraph(const std::string& path);  // ~graph_file at start-up
+  aloam::GraphFileInfo graphInfo();         // this run's settings, as a saved graph records them
   bool saveTrajectoryCb(SaveTrajectory::Request& request, SaveTrajectory::Response& response);
   bool resetCb(std_srvs::Trigger::Request& request, std_srvs::Trigger::Response& response);
   void reconfigureCb(const LaserMappingConfig& config);
@@ -70,7 +77,8 @@ private:
 
   ros::Subscriber frame_sub_;
   ros::Publisher surround_pub_, map_pub_, registered_pub_;
-  ros::ServiceServer save_map_srv_, save_trajectory_srv_, reset_srv_;
+  ros::ServiceServer save_map_srv_, save_trajectory_srv_, save_graph_srv_, reset_srv_;
+  std::string graph_status_ = "none";  // ~graph_file: what loading it did, for the diagnostics
   std::unique_ptr<dynamic_reconfigure::Server<LaserMappingConfig>> reconfigure_server_;
   std::shared_ptr<aloam::Executor> executor_;  // this nodelet's threads, joined on unload
   // Loop closure after the map update, on the lane only (updater_ requests it, so it is stopped after it).
@@ -108,12 +116,20 @@ void LaserMappingNodelet::onInit()
   warnOutOfRange<LaserMappingConfig>(pnh, name);
   reconfigure_server_ = std::make_unique<dynamic_reconfigure::Server<LaserMappingConfig>>(pnh);
   reconfigure_server_->setCallback([this](LaserMappingConfig& c, std::uint32_t) { reconfigureCb(c); });
+  // After the reconfiguration (which switches loop closure on), before the diagnostics and the first frame.
+  std::string graph_file;
+  pnh.param<std::string>("graph_file", graph_file, "");
+  if (!graph_file.empty())
+  {
+    loadGraph(graph_file);  // before the first frame: the run starts in the loaded map
+  }
 
   surround_pub_ = nh.advertise<sensor_msgs::PointCloud2>("laser_cloud_surround", 2);
   map_pub_ = nh.advertise<sensor_msgs::PointCloud2>("laser_cloud_map", 2);
   registered_pub_ = nh.advertise<sensor_msgs::PointCloud2>("velodyne_cloud_registered", 2);
   save_map_srv_ = pnh.advertiseService("save_map", &LaserMappingNodelet::saveMapCb, this);
   save_trajectory_srv_ = pnh.advertiseService("save_trajectory", &LaserMappingNodelet::saveTrajectoryCb, this);
+  save_graph_srv_ = pnh.advertiseService("save_graph", &LaserMappingNodelet::saveGraphCb, this);
   reset_srv_ = pnh.advertiseService("reset", &LaserMappingNodelet::resetCb, this);
   monitor_.init(nh, pnh, name, [this](diagnostic_updater::DiagnosticStatusWrapper& s) { report(s); });
   updater_ = executor_->makeJob([this] { updateMap(); });
@@ -221,12 +237,117 @@ void LaserMappingNodelet::updateMap()
   }
 }
 
+void LaserMappingNodelet::loadGraph(const std::string& path)
+{
+  ros::NodeHandle& pnh = getPrivateNodeHandle();
+  if (!session_->loopClosureEnabled())
+  {
+    graph_status_ = "ignored (loop_closure is off)";
+    NODELET_WARN("~graph_file %s ignored: loading a graph needs loop_closure on", path.c_str());
+    return;
+  }
+  // Where this run starts in the saved map: its first sweep's sensor pose (default: where the saved run
+  // started, e.g. a robot that restarts from its dock).
+  aloam::Pose initial;
+  std::string text;
+  pnh.param<std::string>("initial_pose", text, "");
+  if (!text.empty())
+  {
+    const auto pose = aloam::poseFromXyzRpy(text);
+    if (!pose)
+    {
+      graph_status_ = "not loaded: ~initial_pose '" + text + "' is not \"x y z roll pitch yaw\"";
+      NODELET_ERROR("~graph_file %s not loaded: %s", path.c_str(), graph_status_.c_str());
+      return;
+    }
+    initial = *pose;
+  }
+  try
+  {
+    aloam::GraphFile file = aloam::readGraphFile(path);
+    std::vector<std::string> warnings = aloam::graphSettingsWarnings(file.info, graphInfo());
+    const std::size_t keyframes = file.graph.keyframes.size(), edges = file.graph.edges.size();
+    for (const std::string& w : session_->loadGraph(std::move(file.graph), initial))
+    {
+      warnings.push_back(w);
+    }
+    for (const std::string& w : warnings)
+    {
+      NODELET_WARN("graph %s: %s", path.c_str(), w.c_str());
+    }
+    graph_status_ = "loaded " + path;
+    NODELET_INFO("graph %s loaded: %zu keyframes, %zu edges; this run starts at %s in its map", path.c_str(), keyframes,
+                 edges, text.empty() ? "the saved run's start" : text.c_str());
+  }
+  catch (const std::exception& e)
+  {
+    graph_status_ = std::string("not loaded: ") + e.what();
+    NODELET_ERROR("~graph_file not loaded, mapping starts a new map: %s", e.what());
+  }
+}
+
+aloam::GraphFileInfo LaserMappingNodelet::graphInfo()
+{
+  aloam::GraphFileInfo info;
+  getPrivateNodeHandle().param<std::string>("sensor", info.sensor, "");
+  const aloam::LaserMappingConfig config = session_->mappingConfig();
+  info.cube_size = config.cube_size;
+  info.corner_leaf_size = config.corner_leaf_size;
+  info.surf_leaf_size = config.surf_leaf_size;
+  return info;
+}
+
+bool LaserMappingNodelet::saveGraphCb(SaveGraph::Request& request, SaveGraph::Response& response)
+{
+  const aloam::LoopGraph graph = session_->exportGraph();  // waits for loop work in progress
+  if (graph.keyframes.empty())
+  {
+    response.success = false;
+    response.message =
+        session_->loopClosureEnabled() ? "the graph has no keyframe yet" : "no graph: loop_closure is off";
+    return true;
+  }
+  try
+  {
+    aloam::writeGraphFile(request.path, graph, graphInfo());
+    const auto loops = std::count_if(graph.edges.begin(), graph.edges.end(),
+                                     [](const aloam::PoseGraphEdge& e) { return e.loop && e.enabled; });
+    response.success = true;
+    response.message = "wrote " + std::to_string(graph.keyframes.size()) + " keyframes and " +
+                       std::to_string(graph.edges.size()) + " edges (" + std::to_string(loops) + " loops) to " +
+                       request.path;
+  }
+  catch (const std::exception& e)
+  {
+    response.success = false;
+    response.message = e.what();
+  }
+  return true;
+}
+
 void LaserMappingNodelet::closeLoops()
 {
   const aloam::LoopStep step = session_->closeLoops();
   for (const aloam::LoopRecord& r : step.update.tried)
   {
-    if (!r.accepted)
+    if (r.source == aloam::LoopSource::kSessionStart)
+    {
+      if (r.accepted)
+      {
+        NODELET_INFO(
+            "this run is tied to the loaded graph: its first keyframe %zu registered against loaded "
+            "keyframe %zu (%.2f m / %.2f deg correction)",
+            r.to, r.from, r.correction_m, r.correction_rad * 180.0 / M_PI);
+      }
+      else
+      {
+        NODELET_WARN(
+            "this run could not be tied to the loaded graph (%s): it goes on where its initial pose put "
+            "it, held only loosely to the loaded keyframes until a loop with them closes",
+            r.reason.c_str());
+      }
+    }
+    else if (!r.accepted)
     {
       NODELET_DEBUG("loop %zu -> %zu rejected: %s", r.to, r.from, r.reason.c_str());
     }
@@ -286,6 +407,10 @@ void LaserMappingNodelet::report(diagnostic_updater::DiagnosticStatusWrapper& s)
   s.add("cubes evicted", stats.evicted_cubes);
   s.add("trajectory poses dropped (trajectory_max_poses)", stats.trajectory_dropped);
   s.add("loop closure keyframes", stats.loops.keyframes);
+  s.add("loop closure keyframes loaded", stats.loops.keyframes_loaded);
+  s.add("graph file", graph_status_);
+  s.add("tie to the loaded graph", std::string(aloam::toString(stats.loops.tie)) +
+                                       (stats.loops.tie_reason.empty() ? "" : ": " + stats.loops.tie_reason));
   s.add("loop closure keyframe clouds (MiB)", static_cast<double>(stats.loops.cloud_bytes) / (1024.0 * 1024.0));
   s.add("loops accepted", stats.loops.accepted);
   s.add("loops rejected", stats.loops.rejected);

@@ -21,6 +21,7 @@
 #include <rosbag/bag.h>
 #include <rosbag/view.h>
 
+#include "aloam_nodelet/core/graph_file.h"
 #include "aloam_nodelet/core/localizer.h"
 #include "aloam_nodelet/core/map_file.h"
 #include "aloam_nodelet/core/pipeline.h"
@@ -39,6 +40,7 @@ constexpr const char* kUsage =
     "                     [--keep-every N] [--baseline] [--odometry-trajectory OUT.txt]\n"
     "                     [--nearby-elevation-deg DEG] [--save-map OUT.pcd] [--start-frame N]\n"
     "                     [--loop-closure] [--loops OUT.tsv] [--min-loop-separation S] [--keyframe-distance M]\n"
+    "                     [--save-graph OUT.graph] [--load-graph GRAPH [--initial-pose \"x y z roll pitch yaw\"]]\n"
     "       aloam_offline (--kitti DIR | --bag FILE --topic TOPIC) --sensor PRESET --trajectory OUT.txt\n"
     "                     --localize MAP.pcd [--initial-pose \"x y z roll pitch yaw\"] [--global]\n"
     "                     [--localization-log OUT.txt] [--map-after OUT.pcd] [--start-frame N]\n"
@@ -54,6 +56,13 @@ constexpr const char* kUsage =
     "  --loop-closure     close loops (keyframes, place search, verification, pose graph): --trajectory,\n"
     "                     --map and --save-map then hold the corrected result\n"
     "  --loops OUT.tsv    every loop tried: keyframes, stamps, source, accepted, reason, fitness, correction\n"
+    "  --save-graph OUT.graph\n"
+    "                     the pose graph at the end (keyframes with clouds and descriptors, edges), for\n"
+    "                     --load-graph in a later run (needs --loop-closure)\n"
+    "  --load-graph GRAPH continue a saved graph (needs --loop-closure): the map starts as its keyframes, this\n"
+    "                     run's keyframes join the graph, and --trajectory is in the graph's map frame (where\n"
+    "                     the saved run started), no longer relative to this run's first frame; the first\n"
+    "                     frame is at --initial-pose in that frame (default: the identity, the saved start)\n"
     "  --min-loop-separation S\n"
     "                     no loop between keyframes closer than S seconds or S metres of path (default 30)\n"
     "  --keyframe-distance M\n"
@@ -62,7 +71,8 @@ constexpr const char* kUsage =
     "                     holds the map <- lidar pose of every frame from --start-frame (the last known one\n"
     "                     while no pose is known)\n"
     "  --initial-pose \"x y z roll pitch yaw\"\n"
-    "                     map <- lidar at the first frame (m, rad; yaw * pitch * roll)\n"
+    "                     map <- lidar at the first frame (m, rad; yaw * pitch * roll), with --localize or\n"
+    "                     --load-graph\n"
     "  --global           no initial pose: search the whole map for it (global localization)\n"
     "  --localization-log OUT\n"
     "                     per frame: frame stamp answered state inlier_share mean_residual matched tried\n"
@@ -101,7 +111,7 @@ constexpr double kTrajectorySpacing = 1.0;
 struct Options
 {
   std::string kitti_dir, bag_file, topic, sensor, trajectory, tum, map, odometry_trajectory;
-  std::string save_map, localize, initial_pose, localization_log, map_after, loops;
+  std::string save_map, localize, initial_pose, localization_log, map_after, loops, save_graph, load_graph;
   bool loop_closure = false;
   std::optional<double> min_loop_separation, keyframe_distance;
   bool global = false;
@@ -134,6 +144,8 @@ class FrameSource
 public:
   virtual ~FrameSource() = default;
   virtual std::size_t size() const = 0;
+  /// Frame i's stamp without reading it (the stamp read() gives it).
+  virtual double stamp(std::size_t i) const = 0;
   /// Reads frame i; false (with a message on stderr) if it cannot be used.
   virtual bool read(std::size_t i, Frame& frame) = 0;
 };
@@ -157,6 +169,10 @@ public:
   }
 
   std::size_t size() const override { return files_.size(); }
+  double stamp(std::size_t i) const override
+  {
+    return i < stamps_.size() ? stamps_[i] : kKittiPeriod * static_cast<double>(i);
+  }
 
   bool read(std::size_t i, Frame& frame) override
   {
@@ -173,7 +189,7 @@ public:
     {
       aloam::io::correctVerticalAngle(frame.cloud, vertical_correction_deg_);
     }
-    frame.stamp = i < stamps_.size() ? stamps_[i] : kKittiPeriod * static_cast<double>(i);
+    frame.stamp = stamp(i);
     frame.has_ring = false;
     frame.has_time = false;
     return true;
@@ -211,6 +227,7 @@ public:
   }
 
   std::size_t size() const override { return messages_.size(); }
+  double stamp(std::size_t i) const override { return messages_[i]->header.stamp.toSec(); }
 
   bool read(std::size_t i, Frame& frame) override
   {
@@ -231,6 +248,11 @@ private:
   std::vector<sensor_msgs::PointCloud2::ConstPtr> messages_;
   aloam::ros_io::ReaderOptions options_;
 };
+
+double msSince(std::chrono::steady_clock::time_point start)
+{
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
 
 /// Mean, median and 90th percentile of a series of milliseconds.
 std::string summary(const std::vector<double>& ms)
@@ -258,17 +280,41 @@ void showProgress(std::size_t done, std::size_t total, double seconds, bool tty)
 
 int localize(const Options& opt, const aloam::PipelineConfig& config, FrameSource& source, std::size_t end);
 
+/// The settings a saved graph records (and a loaded one is compared with).
+aloam::GraphFileInfo graphInfo(const Options& opt, const aloam::PipelineConfig& config)
+{
+  aloam::GraphFileInfo info;
+  info.sensor = opt.sensor;
+  info.cube_size = config.mapping.cube_size;
+  info.corner_leaf_size = config.mapping.corner_leaf_size;
+  info.surf_leaf_size = config.mapping.surf_leaf_size;
+  return info;
+}
+
 /// One row per loop tried: target and current keyframe, their stamps, how it was found, the verdict and
 /// its figures.
-void writeLoops(const std::string& path, const aloam::LoopClosure& loops, const std::vector<double>& stamps,
-                std::size_t first_frame)
+void writeLoops(const std::string& path, const aloam::LoopClosure& loops, const FrameSource& source)
 {
-  // The frame of a keyframe's stamp (frames are in stamp order).
+  // The input frame of a keyframe's stamp (frames are in stamp order). A loaded keyframe's stamp is looked
+  // up in this input too: its frame is right when the saved run read the same input.
   const auto frameOf = [&](double stamp)
   {
-    const auto it = std::lower_bound(stamps.begin(), stamps.end(), stamp - 1e-6);
-    return first_frame + static_cast<std::size_t>(it - stamps.begin());
+    std::size_t lo = 0, hi = source.size();
+    while (lo < hi)
+    {
+      const std::size_t mid = (lo + hi) / 2;
+      if (source.stamp(mid) < stamp - 1e-6)
+      {
+        lo = mid + 1;
+      }
+      else
+      {
+        hi = mid;
+      }
+    }
+    return lo;
   };
+  const auto& keyframes = loops.keyframes();
   std::ofstream out(path);
   if (!out)
   {
@@ -276,17 +322,19 @@ void writeLoops(const std::string& path, const aloam::LoopClosure& loops, const 
   }
   out << "from\tto\tfrom_frame\tto_frame\tfrom_stamp\tto_stamp\tsource\taccepted\tinlier_share\tmean_residual_m\t"
          "descriptor_distance\tcorrection_m\tcorrection_deg\trel_x\trel_y\trel_z\trel_qx\trel_qy\trel_qz\trel_qw\t"
-         "reason\n";
+         "from_session\tto_session\treason\n";
   out << std::fixed;
   for (const aloam::LoopRecord& r : loops.history())
   {
     out << r.from << "\t" << r.to << "\t" << frameOf(r.from_stamp) << "\t" << frameOf(r.to_stamp) << "\t"
         << std::setprecision(6) << r.from_stamp << "\t" << r.to_stamp << "\t"
-        << (r.source == aloam::LoopSource::kNearby ? "nearby" : "descriptor") << "\t" << (r.accepted ? 1 : 0) << "\t"
-        << std::setprecision(3) << r.fitness.inlier_share << "\t" << r.fitness.mean_residual << "\t"
-        << r.descriptor_distance << "\t" << r.correction_m << "\t" << r.correction_rad * 180.0 / M_PI << "\t"
-        << std::setprecision(6) << r.relative.t.x() << "\t" << r.relative.t.y() << "\t" << r.relative.t.z() << "\t"
-        << r.relative.q.x() << "\t" << r.relative.q.y() << "\t" << r.relative.q.z() << "\t" << r.relative.q.w() << "\t"
+        << (r.source == aloam::LoopSource::kSessionStart ? "session_start" : aloam::toString(r.source)) << "\t"
+        << (r.accepted ? 1 : 0) << "\t" << std::setprecision(3) << r.fitness.inlier_share << "\t"
+        << r.fitness.mean_residual << "\t" << r.descriptor_distance << "\t" << r.correction_m << "\t"
+        << r.correction_rad * 180.0 / M_PI << "\t" << std::setprecision(6) << r.relative.t.x() << "\t"
+        << r.relative.t.y() << "\t" << r.relative.t.z() << "\t" << r.relative.q.x() << "\t" << r.relative.q.y() << "\t"
+        << r.relative.q.z() << "\t" << r.relative.q.w() << "\t" << keyframes[r.from].session << "\t"
+        << keyframes[r.to].session << "\t"
         << (!r.accepted      ? r.reason
             : r.weak.empty() ? "accepted"
                              : "accepted, weak along " + aloam::describe(r.weak))
@@ -347,6 +395,10 @@ bool parse(int argc, char** argv, Options& o)
       o.loop_closure = true;
     else if (arg == "--loops")
       value(o.loops);
+    else if (arg == "--save-graph")
+      value(o.save_graph);
+    else if (arg == "--load-graph")
+      value(o.load_graph);
     else if (arg == "--min-loop-separation")
     {
       value(number);
@@ -439,18 +491,23 @@ bool parse(int argc, char** argv, Options& o)
   {
     throw std::invalid_argument("--sensor and --trajectory are required");
   }
-  if (o.localize.empty() &&
-      (!o.initial_pose.empty() || o.global || !o.localization_log.empty() || !o.map_after.empty()))
+  if (o.localize.empty() && (o.global || !o.localization_log.empty() || !o.map_after.empty()))
   {
-    throw std::invalid_argument("--initial-pose, --global, --localization-log and --map-after need --localize");
+    throw std::invalid_argument("--global, --localization-log and --map-after need --localize");
+  }
+  if (o.localize.empty() && o.load_graph.empty() && !o.initial_pose.empty())
+  {
+    throw std::invalid_argument("--initial-pose needs --localize or --load-graph");
   }
   if (!o.localize.empty() && (!o.map.empty() || !o.save_map.empty()))
   {
     throw std::invalid_argument("--localize does not map: no --map or --save-map");
   }
-  if (!o.loop_closure && (!o.loops.empty() || o.min_loop_separation || o.keyframe_distance))
+  if (!o.loop_closure && (!o.loops.empty() || o.min_loop_separation || o.keyframe_distance || !o.save_graph.empty() ||
+                          !o.load_graph.empty()))
   {
-    throw std::invalid_argument("--loops, --min-loop-separation and --keyframe-distance need --loop-closure");
+    throw std::invalid_argument(
+        "--loops, --min-loop-separation, --keyframe-distance, --save-graph and --load-graph need --loop-closure");
   }
   if (!o.localize.empty() && o.loop_closure)
   {
@@ -573,6 +630,42 @@ int main(int argc, char** argv)
             << "\n";
 
   aloam::Pipeline pipeline(config);
+  if (!opt.load_graph.empty())
+  {
+    try
+    {
+      aloam::Pose initial;
+      if (!opt.initial_pose.empty())
+      {
+        const auto pose = aloam::poseFromXyzRpy(opt.initial_pose);
+        if (!pose)
+        {
+          throw std::invalid_argument("--initial-pose is not \"x y z roll pitch yaw\": \"" + opt.initial_pose + "\"");
+        }
+        initial = *pose;
+      }
+      const auto start = std::chrono::steady_clock::now();
+      aloam::GraphFile file = aloam::readGraphFile(opt.load_graph);
+      const double read_ms = msSince(start);
+      std::vector<std::string> warnings = aloam::graphSettingsWarnings(file.info, graphInfo(opt, config));
+      const std::size_t keyframes = file.graph.keyframes.size(), edges = file.graph.edges.size();
+      for (const std::string& w : pipeline.loadGraph(std::move(file.graph), initial))
+      {
+        warnings.push_back(w);
+      }
+      for (const std::string& w : warnings)
+      {
+        std::cerr << "aloam_offline: warning: " << w << "\n";
+      }
+      std::fprintf(stderr, "loaded graph %s: %zu keyframes, %zu edges (read in %.1f ms, loaded in %.1f ms)\n",
+                   opt.load_graph.c_str(), keyframes, edges, read_ms, msSince(start) - read_ms);
+    }
+    catch (const std::exception& e)
+    {
+      std::cerr << "aloam_offline: " << e.what() << "\n";
+      return 1;
+    }
+  }
   aloam::eval::Trajectory trajectory, odometry_trajectory;
   std::vector<double> stamps;
   std::vector<double> registration_ms, odometry_ms, mapping_ms, update_ms, pose_ms, total_ms;
@@ -620,7 +713,8 @@ int main(int argc, char** argv)
         {
           inlier_shares.push_back(out.odometry.inlier_share);
         }
-        if (const aloam::LoopClosure* loops = pipeline.loopClosure(); loops && !loops->keyframes().empty())
+        const aloam::LoopClosure* loops = pipeline.loopClosure();
+        if (loops && loops->keyframeAt(out.mapping.stamp) < loops->keyframes().size())
         {
           loop_ms.push_back(out.timings.loop_ms);
           anchor.keyframe = loops->keyframeAt(out.mapping.stamp);
@@ -629,7 +723,14 @@ int main(int argc, char** argv)
           anchor.set = true;
           for (const aloam::LoopRecord& r : out.loop.tried)
           {
-            if (r.accepted)
+            if (r.source == aloam::LoopSource::kSessionStart)
+            {
+              std::cerr << (tty ? "\n" : "") << "frame " << i << ": "
+                        << (r.accepted ? "tied to the loaded graph (keyframe " + std::to_string(r.from) + ")"
+                                       : "not tied to the loaded graph: " + r.reason)
+                        << "\n";
+            }
+            else if (r.accepted)
             {
               std::cerr << (tty ? "\n" : "") << "loop closed: frame " << i << ", keyframe " << r.to << " to " << r.from
                         << " (" << r.correction_m << " m, graph " << out.loop.graph.ms << " ms)\n";
@@ -685,7 +786,7 @@ int main(int argc, char** argv)
               << (loops ? ", loop-corrected" : "") << ")\n";
     if (loops && !opt.loops.empty())
     {
-      writeLoops(opt.loops, *loops, stamps, opt.start_frame);
+      writeLoops(opt.loops, *loops, *source);
       std::cout << "loops: " << opt.loops << "\n";
     }
     if (!opt.odometry_trajectory.empty())
@@ -707,6 +808,16 @@ int main(int argc, char** argv)
         throw std::runtime_error("cannot write map " + opt.map);
       }
       std::cout << "map: " << opt.map << " (" << map.size() << " points)\n";
+    }
+    if (!opt.save_graph.empty())
+    {
+      const auto start = std::chrono::steady_clock::now();
+      const aloam::LoopGraph graph = loops->exportGraph();
+      aloam::writeGraphFile(opt.save_graph, graph, graphInfo(opt, config));
+      const double write_ms = msSince(start);
+      std::cout << "saved graph: " << opt.save_graph << " (" << graph.keyframes.size() << " keyframes, "
+                << graph.edges.size() << " edges, " << fs::file_size(opt.save_graph) << " bytes, written in "
+                << std::lround(write_ms) << " ms)\n";
     }
     if (!opt.save_map.empty())
     {
@@ -751,6 +862,11 @@ int main(int argc, char** argv)
   if (loops)
   {
     const aloam::LoopClosureStats ls = loops->stats();
+    if (ls.keyframes_loaded > 0)
+    {
+      std::cout << "loaded graph: " << ls.keyframes_loaded << " keyframes, tie of this run: " << aloam::toString(ls.tie)
+                << (ls.tie_reason.empty() ? "" : " (" + ls.tie_reason + ")") << "\n";
+    }
     std::cout << "loop closure: " << ls.keyframes << " keyframes (" << ls.cloud_bytes / 1024 << " KiB of clouds), "
               << ls.tried << " loops tried, " << ls.accepted << " accepted, " << ls.rejected << " rejected, "
               << ls.optimizations << " graph solves\n";

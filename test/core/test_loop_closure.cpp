@@ -5,8 +5,10 @@
 #include <cmath>
 #include <algorithm>
 #include <cstdio>
+#include <optional>
 #include <vector>
 
+#include "aloam_nodelet/core/graph_file.h"
 #include "aloam_nodelet/core/laser_odometry.h"
 #include "aloam_nodelet/core/loop_closure.h"
 #include "aloam_nodelet/core/mapping_session.h"
@@ -614,6 +616,163 @@ TEST(LoopClosureSessionTest, ClosesLoopsOffThePosePathAndCorrectsTheTrajectory)
   session.updateMap();
   EXPECT_TRUE(session.closeLoops().offered);
   EXPECT_EQ(session.stats().loops.keyframes, 1u);
+}
+
+// Two runs in one graph (issue 24): run 1 drives out along the street and saves its graph; run 2 loads it and
+// starts where run 1 started, but is told a start pose 0.64 m and 2 deg off (a robot pushed off its dock). It
+// drives the same lane at another speed and on beyond run 1's end. Run 2 must tie its first keyframe to run
+// 1's, end up in run 1's frame (its poses agree with run 1's where both drove, and with the truth as well as
+// run 1 does), close loops with run 1's keyframes at their true relative poses, and its graph must hold run
+// 1's keyframes.
+struct SessionRun
+{
+  std::vector<Pose> poses, truth;  ///< the recorded (corrected) trajectory and the truth, in run 1's map frame
+  LoopClosureStats loops;
+};
+
+SessionRun driveSession(MappingSession& session, const ts::Trajectory& drive, double duration,
+                        const Eigen::Isometry3d& map_origin)
+{
+  const SensorModel sensor = ts::preset("VLP16");
+  ScanRegistrationConfig rc;
+  rc.sensor = sensor;
+  ScanRegistration registration(rc);
+  LaserOdometry odometry;
+  for (int k = 0; 0.1 * (k + 1) <= duration; ++k)
+  {
+    const double t = 0.1 * (k + 1);
+    auto features = std::make_shared<FeatureSet>();
+    // With the motion within the sweep, which odometry deskews (a static sweep deskewed by the car's speed
+    // would be a warped one).
+    EXPECT_TRUE(registration.process(ts::driveSweep(sensor, drive, k, true), t, true, true, *features));
+    const OdometryFrame frame = odometry.track(features);
+    odometry.indexLast();
+    EXPECT_TRUE(session.admit(frame, static_cast<std::int64_t>(std::llround(t * 1e9))).taken);
+    session.registerFrame(frame);
+    session.updateMap();
+    session.closeLoops();
+  }
+  SessionRun run;
+  const RecordedTrajectory trajectory = session.trajectory();
+  run.poses = trajectory.poses;
+  for (const double stamp : trajectory.stamps)
+  {
+    run.truth.push_back(ts::toPose(map_origin.inverse() * drive(stamp)));
+  }
+  run.loops = session.stats().loops;
+  return run;
+}
+
+/// A straight drive along x: the estimated position where the truth was at `true_x` (linear between poses).
+std::optional<Eigen::Vector3d> estimateAt(const SessionRun& run, double true_x)
+{
+  for (std::size_t i = 1; i < run.truth.size(); ++i)
+  {
+    const double a = run.truth[i - 1].t.x(), b = run.truth[i].t.x();
+    if (a <= true_x && true_x <= b && b > a)
+    {
+      const double s = (true_x - a) / (b - a);
+      return (1.0 - s) * run.poses[i - 1].t + s * run.poses[i].t;
+    }
+  }
+  return std::nullopt;
+}
+
+TEST(LoopClosureTwoSessionsTest, ASecondRunExtendsTheSavedGraphInTheSameFrame)
+{
+  constexpr double kStartX = 20.0, kLane = -3.0;
+  const ts::Trajectory drive1 = [](double t) { return ts::poseFrom(kStartX + 6.0 * t, kLane, ts::kSensorHeight, 0.0); };
+  // Run 2 passes run 1's first pose (its first sweep ends at t = 0.1, 0.6 m on) at its own t = 0.1, slower.
+  const ts::Trajectory drive2 = [](double t)
+  { return ts::poseFrom(kStartX + 0.6 + 5.0 * (t - 0.1), kLane, ts::kSensorHeight, 0.0); };
+  const Eigen::Isometry3d origin = drive1(0.1);
+  MappingSessionConfig config;
+  config.loop_closure = true;
+  config.loop = shortRunConfig();
+
+  // Run 1: 60 m out.
+  MappingSession first(config);
+  const SessionRun run1 = driveSession(first, drive1, 10.0, origin);
+  const LoopGraph saved = first.exportGraph();
+  ASSERT_GT(saved.keyframes.size(), 40u);
+  const std::string path = ::testing::TempDir() + "aloam_two_sessions.graph";
+  writeGraphFile(path, saved, GraphFileInfo());
+  GraphFile file = readGraphFile(path);
+
+  // Run 2: 75 m out, through run 1's 60 m and on, over run 1's graph, from a start pose told wrong.
+  const Pose told(Eigen::Quaterniond(Eigen::AngleAxisd(2.0 * ts::kDegToRad, Eigen::Vector3d::UnitZ())),
+                  Eigen::Vector3d(0.5, -0.4, 0.0));
+  MappingSession second(config);
+  EXPECT_TRUE(second.loadGraph(std::move(file.graph), told).empty());
+  EXPECT_EQ(second.stats().loops.keyframes_loaded, saved.keyframes.size());
+  const SessionRun run2 = driveSession(second, drive2, 15.0, origin);
+
+  // Every accepted loop (run 2 to run 1: there is no other) against the true relative pose of the two sweeps.
+  const LoopGraph both = second.exportGraph();
+  const std::size_t n1 = saved.keyframes.size();
+  const auto truthOf = [&](const Keyframe& k)
+  { return ts::toPose(origin.inverse() * (k.session == 0 ? drive1(k.stamp) : drive2(k.stamp))); };
+  int cross = 0;
+  double worst_m = 0.0, worst_deg = 0.0;
+  for (const PoseGraphEdge& e : both.edges)
+  {
+    if (!e.loop || !e.enabled)
+    {
+      continue;
+    }
+    EXPECT_TRUE(e.from < n1 && e.to >= n1) << "a loop within one run: " << e.from << " -> " << e.to;
+    const Pose truth = truthOf(both.keyframes[e.from]).inverse() * truthOf(both.keyframes[e.to]);
+    worst_m = std::max(worst_m, ts::translationError(e.measured, truth));
+    worst_deg = std::max(worst_deg, ts::rotationErrorDeg(e.measured, truth));
+    ++cross;
+  }
+  // Where both drove: run 2's pose against run 1's at the same true place, and both against the truth.
+  double apart = 0.0, worst1 = 0.0, worst2 = 0.0;
+  for (std::size_t i = 0; i < run2.poses.size(); ++i)
+  {
+    worst2 = std::max(worst2, ts::translationError(run2.poses[i], run2.truth[i]));
+    if (const auto same_place = estimateAt(run1, run2.truth[i].t.x()))
+    {
+      apart = std::max(apart, (run2.poses[i].t - *same_place).norm());
+    }
+  }
+  for (std::size_t i = 0; i < run1.poses.size(); ++i)
+  {
+    worst1 = std::max(worst1, ts::translationError(run1.poses[i], run1.truth[i]));
+  }
+  std::printf(
+      "[ measured ] run 1: %zu keyframes, worst %.3f m off the truth; run 2 told a start %.2f m off: tie %s (%s), "
+      "%d loop edges to run 1 (worst %.3f m / %.2f deg off the truth) of %zu tried; run 2 at most %.3f m from run "
+      "1 at the same place, worst %.3f m off the truth\n",
+      n1, worst1, told.t.norm(), toString(run2.loops.tie), run2.loops.tie_reason.c_str(), cross, worst_m, worst_deg,
+      run2.loops.tried, apart, worst2);
+  EXPECT_EQ(run2.loops.tie, SessionTie::kTied);
+  EXPECT_GE(cross, 4);  // the tie and loops along run 1's 60 m (one per loop_spacing at most)
+  EXPECT_LT(worst_m, 0.3);
+  EXPECT_LT(worst_deg, 1.0);
+  EXPECT_LT(apart, 0.2);            // in run 1's frame: the 0.64 m of the wrong start are gone
+  EXPECT_LT(worst2, worst1 + 0.5);  // as close to the truth as run 1's map lets it be
+
+  // The graph of run 2 holds run 1's keyframes (moved by little) and edges, then its own.
+  ASSERT_GT(both.keyframes.size(), n1 + 50);
+  for (std::size_t i = 0; i < n1; ++i)
+  {
+    EXPECT_EQ(both.keyframes[i].session, 0);
+    EXPECT_EQ(both.keyframes[i].stamp, saved.keyframes[i].stamp);
+    EXPECT_LT(ts::translationError(both.keyframes[i].pose, saved.keyframes[i].pose), 0.1) << "keyframe " << i;
+  }
+  for (std::size_t i = n1; i < both.keyframes.size(); ++i)
+  {
+    EXPECT_EQ(both.keyframes[i].session, 1);
+  }
+  for (std::size_t i = 0; i < saved.edges.size(); ++i)
+  {
+    EXPECT_EQ(both.edges[i].from, saved.edges[i].from);
+    EXPECT_EQ(both.edges[i].to, saved.edges[i].to);
+  }
+  writeGraphFile(path, both, GraphFileInfo());
+  EXPECT_EQ(readGraphFile(path).graph.keyframes.size(), both.keyframes.size());
+  std::remove(path.c_str());
 }
 
 }  // namespace

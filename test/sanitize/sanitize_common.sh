@@ -28,7 +28,7 @@ tsan_reports() {
 # The gtest filter of both runs: everything but the long loop-closure drives, which run the code of the short
 # loop-closure tests (the session test among them) over hundreds of frames and take minutes under a sanitizer.
 sanitize_gtest_filter() {
-  echo "-LoopClosureTest.ClosesADriftedOutAndBackDriveWithTheTrueRelativePose:LoopClosureTest.LookAlikeBlocksNeverClose:LoopClosurePipelineTest.*"
+  echo "-LoopClosureTest.ClosesADriftedOutAndBackDriveWithTheTrueRelativePose:LoopClosureTest.LookAlikeBlocksNeverClose:LoopClosurePipelineTest.*:LoopClosureTwoSessionsTest.*"
 }
 
 sanitize_core_sources() {  # sanitize_core_sources ROOT: the sources, one a line

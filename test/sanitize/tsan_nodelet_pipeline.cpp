@@ -23,6 +23,7 @@
 #include <sensor_msgs/PointCloud2.h>
 #include <std_srvs/Trigger.h>
 
+#include <aloam_nodelet/SaveGraph.h>
 #include <aloam_nodelet/SaveMap.h>
 #include <aloam_nodelet/SaveTrajectory.h>
 
@@ -99,7 +100,7 @@ struct ServiceCaller
   std::string out_dir;
   std::atomic<bool> stop{ false };
   std::atomic<int> calls{ 0 }, unanswered{ 0 }, failed{ 0 }, rounds{ 0 };
-  std::atomic<int> maps_saved{ 0 }, trajectories_saved{ 0 };
+  std::atomic<int> maps_saved{ 0 }, trajectories_saved{ 0 }, graphs_saved{ 0 };
 
   void expect(bool answered, bool success, const std::string& what, const std::string& message = "")
   {
@@ -191,6 +192,17 @@ struct ServiceCaller
     const bool trajectory_answered = ros::service::call("/laser_mapping/save_trajectory", save_trajectory);
     expect(trajectory_answered, save_trajectory.response.success, "save_trajectory", save_trajectory.response.message);
     trajectories_saved += trajectory_answered && save_trajectory.response.success ? 1 : 0;
+
+    // The graph is copied under the loop closure's lock, beside its lane work. Loop closure off, or just
+    // reset: an answer saying there is no graph is a correct one.
+    aloam_nodelet::SaveGraph save_graph;
+    save_graph.request.path = out_dir + "/site.graph";
+    const bool graph_answered = ros::service::call("/laser_mapping/save_graph", save_graph);
+    expect(graph_answered,
+           save_graph.response.success || save_graph.response.message.find("no keyframe") != std::string::npos ||
+               save_graph.response.message.find("loop_closure is off") != std::string::npos,
+           "save_graph", save_graph.response.message);
+    graphs_saved += graph_answered && save_graph.response.success ? 1 : 0;
 
     // Resets now and then only: each one restarts the map.
     if (r % 3 == 2)
@@ -349,7 +361,7 @@ int main(int argc, char** argv)
             std::to_string(caller.failed.load()) + " failed");
   check(caller.maps_saved.load() > 0 && caller.trajectories_saved.load() > 0,
         std::to_string(caller.maps_saved.load()) + " maps and " + std::to_string(caller.trajectories_saved.load()) +
-            " trajectories saved");
+            " trajectories saved (and " + std::to_string(caller.graphs_saved.load()) + " graphs)");
   check(clouds.received.load() > 0, std::to_string(clouds.received.load()) + " optional clouds received");
 
   // Unloading with sweeps in flight: a burst of sweeps, not waited for; then each stage is unloaded just as

@@ -171,6 +171,11 @@ public:
   void replaceMap(CubeMap map, const Pose& change);
   /// A map of these sweeps as rebuildMap() makes it, with the configuration's cube and leaf sizes.
   static CubeMap buildMap(const std::vector<MapSweep>& sweeps, const LaserMappingConfig& config);
+  /// A run that continues a saved map: reset(), then `map` (buildMap of the saved keyframes) is the map and
+  /// `correction` (map <- odometry world: where the run's odometry starts in the saved map) predicts the
+  /// first frame. A distorted first sweep (its motion unknown) then keeps that prediction and never enters
+  /// the map; registration starts with the next sweep.
+  void startIn(CubeMap map, const Pose& correction);
 
   // Localization in a saved map (see Localizer). None of these is used while mapping.
 
@@ -226,6 +231,8 @@ private:
   std::vector<SearchMemo> corner_memo_, surf_memo_;
   Pose pending_pose_;
   bool pending_insert_ = false;
+  bool run_started_ = false;  ///< a frame was registered since reset() / startIn()
+  bool continued_ = false;    ///< the map was loaded by startIn()
   // A distorted first sweep waiting for the next sweep's motion (deskew_first_late), and, once that is
   // known, its deskewed and downsampled clouds waiting for updateMap().
   struct HeldSweep

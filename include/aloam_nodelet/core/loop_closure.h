@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstddef>
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -79,6 +80,11 @@ struct LoopClosureConfig
   double loop_outlier_error = 5.0;
   double loop_loss_scale = 5.0;
   int graph_iterations = 50;
+  /// A run that continues a loaded graph (LoopClosure::importGraph): its first keyframe is held near the
+  /// nearest loaded keyframe, where the run's initial pose put it, by an edge of these sigmas (m, rad). A
+  /// weak prior that only keeps the graph in one piece; the verified tie (a loop edge) is what moves it.
+  double session_anchor_sigma_translation = 1.0;
+  double session_anchor_sigma_rotation = 0.05;
   /// The matching used to verify loops (leaf sizes, neighbours); LoopClosure sets it frozen.
   LaserMappingConfig matching;
 };
@@ -87,8 +93,11 @@ struct LoopClosureConfig
 struct Keyframe
 {
   double stamp = 0.0;
-  Pose pose;                                    ///< map <- sensor, as corrected by the pose graph
-  double path = 0.0;                            ///< metres travelled from the first keyframe
+  Pose pose;          ///< map <- sensor, as corrected by the pose graph
+  double path = 0.0;  ///< metres travelled from the first keyframe of its run
+  /// The run that made it: 0 the first, 1 the run that loaded its graph, and so on. Keyframes of different
+  /// runs always count as separated (their stamps and paths are not comparable).
+  int session = 0;
   std::shared_ptr<const Cloud> corners, surfs;  ///< null once dropped (max_keyframe_clouds)
   ScanContext descriptor;
 };
@@ -97,7 +106,13 @@ enum class LoopSource
 {
   kNearby,      ///< near the current pose estimate
   kDescriptor,  ///< found by the place descriptor
+  /// The first keyframe of a run over a loaded graph against the nearest loaded keyframe: the tie of the
+  /// new run to the old graph.
+  kSessionStart,
 };
+
+/// "nearby", "descriptor" or "session start".
+const char* toString(LoopSource source);
 
 /// One tried loop: accepted, or rejected with the reason.
 struct LoopRecord
@@ -131,9 +146,34 @@ struct LoopUpdate
   double verify_ms = 0.0;
 };
 
+/// How the current run is tied to a loaded graph (LoopClosure::importGraph).
+enum class SessionTie
+{
+  kNone,     ///< no graph loaded: the run is the graph's first
+  kPending,  ///< loaded; the run's first keyframe is not made yet
+  kTied,     ///< the first keyframe registered against the loaded keyframes and the loop edge accepted
+  kNotTied,  ///< that registration failed the loop checks (LoopClosureStats::tie_reason): no tie edge
+};
+
+/// "none", "pending", "tied", "not tied".
+const char* toString(SessionTie tie);
+
+/// The state a later run continues (LoopClosure::exportGraph / importGraph; graph_file.h stores it).
+struct LoopGraph
+{
+  std::vector<Keyframe> keyframes;    ///< node i of the pose graph is keyframe i, at its corrected pose
+  std::vector<PoseGraphEdge> edges;   ///< odometry, loop and session edges, with their enabled flags
+  ScanContextConfig descriptor;       ///< what the keyframes' descriptors were made with
+  double keyframe_corner_leaf = 0.4;  ///< the voxel leaves of the keyframes' clouds (m)
+  double keyframe_surf_leaf = 0.8;
+};
+
 struct LoopClosureStats
 {
   std::size_t keyframes = 0;
+  std::size_t keyframes_loaded = 0;  ///< of those, loaded from a saved graph (importGraph)
+  SessionTie tie = SessionTie::kNone;
+  std::string tie_reason;  ///< kNotTied: why; kTied: the keyframe it tied to
   std::size_t keyframes_with_clouds = 0;
   std::size_t cloud_bytes = 0;  ///< memory of the kept keyframe clouds
   std::size_t tried = 0;
@@ -167,13 +207,27 @@ public:
   LoopUpdate addFrame(double stamp, const Pose& pose, const Cloud& corners, const Cloud& surfs,
                       const Cloud* sweep = nullptr);
 
+  /// A copy of the graph (keyframes with their clouds shared, edges, settings), for saving.
+  LoopGraph exportGraph() const;
+  /// Replaces everything by a saved graph: its keyframes become loop targets and map sweeps, its edges stay
+  /// in the pose graph, and the next keyframe starts a new run (session) in the same graph, tied to the
+  /// nearest loaded keyframe by a weak anchor edge and, when the registration verifies, by a loop edge.
+  /// The caller's poses must be in the graph's map frame from then on. Returns what it had to adapt (e.g.
+  /// descriptors made with other settings are remade from the keyframe clouds). Throws
+  /// std::invalid_argument, changing nothing, when the graph is inconsistent (an edge to no keyframe, a
+  /// non-finite pose, an edge PoseGraphEdge::isUsable rejects).
+  std::vector<std::string> importGraph(LoopGraph graph);
+  /// Index of the current run's first keyframe (the number of loaded keyframes).
+  std::size_t sessionBegin() const { return session_begin_; }
+
   const std::vector<Keyframe>& keyframes() const { return keyframes_; }
   /// Every loop tried so far, in order.
   const std::vector<LoopRecord>& history() const { return history_; }
   LoopClosureStats stats() const;
   /// The keyframes' clouds at their corrected poses, for rebuilding the map.
   std::vector<MapSweep> mapSweeps() const;
-  /// Index of the newest keyframe at or before `stamp` (0 when none is older).
+  /// Index of the current run's newest keyframe at or before `stamp` (the run's first when none is older;
+  /// keyframes().size() while the run has none). Loaded keyframes are never returned.
   std::size_t keyframeAt(double stamp) const;
   const PoseGraph& graph() const { return graph_; }
   void reset();
@@ -190,8 +244,13 @@ private:
   double last_loop_path_ = -1.0;  ///< path of the last accepted loop's current keyframe (< 0: none yet)
   std::size_t optimizations_ = 0;
   double last_optimize_ms_ = 0.0;
+  int session_ = 0;                    ///< the current run's session number
+  std::size_t session_begin_ = 0;      ///< its first keyframe's index (loaded keyframes come before)
+  std::size_t tie_record_ = SIZE_MAX;  ///< history_ index of the tie of the current run to a loaded graph
 
   bool isKeyframe(const Pose& pose) const;
+  /// The nearest keyframe of an earlier run (with clouds when `with_clouds`); keyframes_.size() if none.
+  std::size_t nearestLoaded(const Eigen::Vector3d& position, bool with_clouds) const;
   void dropOldClouds();
   /// Candidate targets for the newest keyframe (nearby first, then by descriptor), with their sources.
   std::vector<LoopRecord> candidates() const;

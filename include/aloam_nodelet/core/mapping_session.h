@@ -99,6 +99,19 @@ public:
   /// Call from one thread (the stage's lane).
   LoopStep closeLoops();
   void setLoopClosure(bool enabled, const LoopClosureConfig& config);
+  bool loopClosureEnabled() const;
+
+  /// Continues a saved graph (needs loop closure on): its keyframes are rebuilt into the map (off the core
+  /// lock) and become loop targets, and this run's keyframes join the same graph as a new session
+  /// (LoopClosure::importGraph). `initial` is map <- odometry world, the saved map's pose of where this
+  /// run's odometry starts (its first sweep); the identity when the run starts where the saved one started.
+  /// Starts a new map and trajectory as a reset does, so call it before the first frame. Returns what was
+  /// adapted (LoopClosure::importGraph); throws std::logic_error when loop closure is off and
+  /// std::invalid_argument for an inconsistent graph, in both cases changing nothing.
+  std::vector<std::string> loadGraph(LoopGraph graph, const Pose& initial);
+  /// The loop closure's graph as it stands (keyframes at their corrected poses), for saving
+  /// (writeGraphFile). Waits for loop work in progress.
+  LoopGraph exportGraph() const;
 
   /// A new map starts before the next registration (service call).
   void requestReset();

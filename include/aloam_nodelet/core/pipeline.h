@@ -72,6 +72,11 @@ public:
   PipelineOutput processOdometry(const Cloud& cloud, double stamp, bool has_ring, bool has_time);
 
   void reset();
+  /// Continues a saved graph (needs PipelineConfig::loop_closure): as MappingSession::loadGraph, with
+  /// `initial` the saved map's pose of the next sweep's sensor (map <- odometry world). Registration and
+  /// odometry start over. Returns what was adapted; throws std::logic_error without loop closure and
+  /// std::invalid_argument for an inconsistent graph. A later reset (a jump back in time) forgets it.
+  std::vector<std::string> loadGraph(LoopGraph graph, const Pose& initial);
   const ScanRegistration& registration() const { return registration_; }
   const LaserOdometry& odometry() const { return odometry_; }
   const LaserMapping& mapping() const { return mapping_; }

@@ -23,6 +23,9 @@ struct PoseGraphEdge
   Eigen::Matrix<double, 6, 6> sqrt_information = Eigen::Matrix<double, 6, 6>::Identity() * 10.0;
   bool loop = false;    ///< loop edges get the robust loss and the consistency check
   bool enabled = true;  ///< false: left out of every solve (a loop found inconsistent with the others)
+
+  /// A finite measurement and a finite, non-zero information: what the graph (and a saved graph) accepts.
+  bool isUsable() const;
 };
 
 /// The square-root information of independent errors with these standard deviations, the same along x y z:

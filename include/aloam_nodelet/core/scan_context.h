@@ -39,6 +39,8 @@ public:
   /// used, to level the sweep.
   static ScanContext compute(const Cloud& corners, const Cloud& surfs, const Pose& pose,
                              const ScanContextConfig& config = {});
+  /// The descriptor of these cells (rings x sectors, as cells() returns them), e.g. read back from a file.
+  static ScanContext fromCells(const Eigen::MatrixXf& cells);
 
   bool empty() const { return cells_.size() == 0; }
   /// Mean cell value per ring: invariant to yaw, for a quick nearest-place search.
