@@ -117,50 +117,25 @@ struct ServiceCaller
     }
   }
 
-  void reconfigure(const std::string& node, const std::string& name, double value)
-  {
-    dynamic_reconfigure::Reconfigure srv;
-    dynamic_reconfigure::DoubleParameter p;
-    p.name = name;
-    p.value = value;
-    srv.request.config.doubles.push_back(p);
-    const bool answered = ros::service::call(node + "/set_parameters", srv);
-    bool applied = false;
-    for (const auto& d : srv.response.config.doubles)
-    {
-      applied = applied || (d.name == name && std::abs(d.value - value) < 1e-9);
-    }
-    expect(answered, applied, node + " set_parameters " + name);
-  }
+  // The parameter list of a Reconfigure config that holds values of type T.
+  static auto& parametersOf(dynamic_reconfigure::Config& c, double) { return c.doubles; }
+  static auto& parametersOf(dynamic_reconfigure::Config& c, int) { return c.ints; }
+  static auto& parametersOf(dynamic_reconfigure::Config& c, bool) { return c.bools; }
 
-  void reconfigureInt(const std::string& node, const std::string& name, int value)
+  template <typename T>
+  void reconfigure(const std::string& node, const std::string& name, T value)
   {
     dynamic_reconfigure::Reconfigure srv;
-    dynamic_reconfigure::IntParameter p;
-    p.name = name;
-    p.value = value;
-    srv.request.config.ints.push_back(p);
+    auto& request = parametersOf(srv.request.config, value);
+    request.emplace_back();
+    request.back().name = name;
+    request.back().value = value;
     const bool answered = ros::service::call(node + "/set_parameters", srv);
     bool applied = false;
-    for (const auto& i : srv.response.config.ints)
+    for (const auto& p : parametersOf(srv.response.config, value))
     {
-      applied = applied || (i.name == name && i.value == value);
-    }
-    expect(answered, applied, node + " set_parameters " + name);
-  }
-
-  void reconfigureBool(const std::string& node, const std::string& name, bool value)
-  {
-    dynamic_reconfigure::Reconfigure srv;
-    dynamic_reconfigure::BoolParameter p;
-    p.name = name;
-    p.value = value;
-    srv.request.config.bools.push_back(p);
-    const bool answered = ros::service::call(node + "/set_parameters", srv);
-    bool applied = false;
-    for (const auto& b : srv.response.config.bools)
-    {
-      applied = applied || (b.name == name && static_cast<bool>(b.value) == value);
+      applied =
+          applied || (p.name == name && std::abs(static_cast<double>(p.value) - static_cast<double>(value)) < 1e-9);
     }
     expect(answered, applied, node + " set_parameters " + name);
   }
@@ -170,10 +145,10 @@ struct ServiceCaller
     const bool odd = r % 2 == 1;
     // Loop closure on in three rounds of four: its lane work (keyframes, verification) runs beside the
     // registrations, and switching it touches the session from the reconfigure thread.
-    reconfigureBool("/laser_mapping", "loop_closure", r % 4 != 3);
+    reconfigure("/laser_mapping", "loop_closure", r % 4 != 3);
     reconfigure("/laser_mapping", "min_loop_separation", 3.0);
     reconfigure("/scan_registration", "minimum_range", odd ? 0.5 : 0.3);
-    reconfigureInt("/laser_odometry", "max_iterations", odd ? 5 : 4);
+    reconfigure("/laser_odometry", "max_iterations", odd ? 5 : 4);
     reconfigure("/laser_mapping", "cube_size", odd ? 40.0 : 50.0);
     reconfigure("/laser_mapping", "surf_leaf_size", odd ? 0.7 : 0.8);
 
