@@ -290,6 +290,19 @@ std::size_t LoopClosure::keyframeAt(double stamp) const
   return it == begin ? session_begin_ : static_cast<std::size_t>(it - keyframes_.begin()) - 1;
 }
 
+void LoopClosure::correctPoses(const std::vector<double>& stamps, const std::vector<Pose>& before,
+                               std::vector<Pose>& poses) const
+{
+  for (std::size_t i = 0; i < poses.size() && i < stamps.size(); ++i)
+  {
+    const std::size_t k = keyframeAt(stamps[i]);
+    if (k < before.size() && k < keyframes_.size())
+    {
+      poses[i] = keyframes_[k].pose * before[k].inverse() * poses[i];
+    }
+  }
+}
+
 LoopUpdate LoopClosure::addFrame(double stamp, const Pose& pose, const Cloud& corners, const Cloud& surfs,
                                  const Cloud* sweep)
 {

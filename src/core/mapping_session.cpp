@@ -123,8 +123,6 @@ LoopStep MappingSession::closeLoops()
   auto start = std::chrono::steady_clock::now();
   CubeMap map = LaserMapping::buildMap(loops_.mapSweeps(), config);
   step.build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-  const std::vector<Keyframe>& keyframes = loops_.keyframes();
-  const std::vector<Pose>& before = step.update.keyframes_before;
   std::lock_guard<std::mutex> lock(core_mutex_);
   start = std::chrono::steady_clock::now();
   updateMapLocked(nullptr, nullptr);  // a frame registered meanwhile joins the old map, which goes
@@ -141,16 +139,8 @@ LoopStep MappingSession::closeLoops()
     correction_ = mapping_.correction();
   }
   // Every recorded pose follows the newest keyframe of this run at or before it (the run's first keyframe
-  // for the poses before it: the graph holds it fixed unless the run continues a loaded graph), as the graph
-  // moved that keyframe.
-  for (std::size_t i = 0; i < trajectory_.poses.size(); ++i)
-  {
-    const std::size_t k = loops_.keyframeAt(trajectory_.stamps[i]);
-    if (k < before.size())
-    {
-      trajectory_.poses[i] = keyframes[k].pose * before[k].inverse() * trajectory_.poses[i];
-    }
-  }
+  // for the poses before it: the graph holds it fixed unless the run continues a loaded graph).
+  loops_.correctPoses(trajectory_.stamps, step.update.keyframes_before, trajectory_.poses);
   step.rebuild_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   stats_.loops = loops_.stats();
   stats_.last_rebuild_ms = step.rebuild_ms;

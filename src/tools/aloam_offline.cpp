@@ -672,23 +672,14 @@ int main(int argc, char** argv)
   std::size_t rejected = 0, degraded_odometry = 0, degraded_mapping = 0, remapped_odometry = 0, remapped_mapping = 0;
   std::size_t hypotheses_tried = 0, hypotheses_kept = 0;
   std::vector<double> inlier_shares, loop_ms;
-  // With loop closure: each frame's pose relative to the newest keyframe when it was mapped, so that the
-  // saved trajectory follows the keyframes wherever the pose graph moved them later.
-  struct Anchor
-  {
-    std::size_t keyframe = 0;
-    aloam::Pose keyframe_pose;  ///< the keyframe's pose when the frame was mapped
-    aloam::Pose relative;
-    bool set = false;
-  };
-  std::vector<Anchor> anchors;
+  // The mapped poses, which loop closure moves after the fact (the trajectory written at the end).
+  std::vector<aloam::Pose> mapped;
   Frame frame;
   const bool tty = isatty(fileno(stderr));
   const auto start = std::chrono::steady_clock::now();
   for (std::size_t i = opt.start_frame; i < end; ++i)
   {
-    Anchor anchor;
-    aloam::Pose pose = trajectory.empty() ? aloam::Pose() : aloam::Pose(trajectory.back());
+    aloam::Pose pose = mapped.empty() ? aloam::Pose() : mapped.back();
     aloam::Pose odometry_pose = odometry_trajectory.empty() ? aloam::Pose() : aloam::Pose(odometry_trajectory.back());
     if (source->read(i, frame))
     {
@@ -717,10 +708,11 @@ int main(int argc, char** argv)
         if (loops && loops->keyframeAt(out.mapping.stamp) < loops->keyframes().size())
         {
           loop_ms.push_back(out.timings.loop_ms);
-          anchor.keyframe = loops->keyframeAt(out.mapping.stamp);
-          anchor.keyframe_pose = loops->keyframes()[anchor.keyframe].pose;
-          anchor.relative = anchor.keyframe_pose.inverse() * pose;
-          anchor.set = true;
+          if (out.loop.optimized)
+          {
+            // The frames so far follow their keyframes; this frame's pose is corrected already.
+            loops->correctPoses(stamps, out.loop.keyframes_before, mapped);
+          }
           for (const aloam::LoopRecord& r : out.loop.tried)
           {
             if (r.source == aloam::LoopSource::kSessionStart)
@@ -753,12 +745,7 @@ int main(int argc, char** argv)
     {
       ++rejected;
     }
-    if (!anchor.set && !anchors.empty())
-    {
-      anchor = anchors.back();  // a rejected frame repeats the last pose
-    }
-    anchors.push_back(anchor);
-    trajectory.push_back(pose.isometry());
+    mapped.push_back(pose);  // a rejected frame repeats the last pose
     odometry_trajectory.push_back(odometry_pose.isometry());
     stamps.push_back(frame.stamp);
     showProgress(i + 1 - opt.start_frame, frames,
@@ -766,18 +753,9 @@ int main(int argc, char** argv)
   }
 
   const aloam::LoopClosure* loops = pipeline.loopClosure();
-  if (loops)
+  for (const aloam::Pose& pose : mapped)
   {
-    for (std::size_t i = 0; i < trajectory.size(); ++i)
-    {
-      const Anchor& a = anchors[i];
-      const aloam::Pose& now = a.set ? loops->keyframes()[a.keyframe].pose : a.keyframe_pose;
-      // Only where the graph moved the keyframe: elsewhere the pose stays exactly as mapping gave it.
-      if (a.set && (now.t != a.keyframe_pose.t || now.q.coeffs() != a.keyframe_pose.q.coeffs()))
-      {
-        trajectory[i] = (now * a.relative).isometry();
-      }
-    }
+    trajectory.push_back(pose.isometry());
   }
   try
   {

@@ -229,6 +229,9 @@ public:
   /// Index of the current run's newest keyframe at or before `stamp` (the run's first when none is older;
   /// keyframes().size() while the run has none). Loaded keyframes are never returned.
   std::size_t keyframeAt(double stamp) const;
+  /// Moves poses recorded at `stamps` as the last optimization moved their keyframes: each follows the
+  /// keyframe keyframeAt(its stamp), from its pose in `before` (LoopUpdate::keyframes_before) to its pose now.
+  void correctPoses(const std::vector<double>& stamps, const std::vector<Pose>& before, std::vector<Pose>& poses) const;
   const PoseGraph& graph() const { return graph_; }
   void reset();
 
