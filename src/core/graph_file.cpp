@@ -72,32 +72,14 @@ std::uint64_t getBytes(const unsigned char* p, int n)
   return v;
 }
 
-std::uint32_t floatBits(float f)
+// The bits of a value as another type of the same size (IEEE 754 floats to and from their integers).
+template <typename To, typename From>
+To bitCast(From from)
 {
-  std::uint32_t u;
-  std::memcpy(&u, &f, sizeof(u));
-  return u;
-}
-
-float bitsFloat(std::uint32_t u)
-{
-  float f;
-  std::memcpy(&f, &u, sizeof(f));
-  return f;
-}
-
-std::uint64_t doubleBits(double d)
-{
-  std::uint64_t u;
-  std::memcpy(&u, &d, sizeof(u));
-  return u;
-}
-
-double bitsDouble(std::uint64_t u)
-{
-  double d;
-  std::memcpy(&d, &u, sizeof(d));
-  return d;
+  static_assert(sizeof(To) == sizeof(From), "bitCast needs types of one size");
+  To to;
+  std::memcpy(&to, &from, sizeof(to));
+  return to;
 }
 
 /// Little-endian encoding into a buffer written out in large blocks, with the running checksum.
@@ -119,8 +101,8 @@ public:
   void u32(std::uint32_t v) { number(v, 4); }
   void u64(std::uint64_t v) { number(v, 8); }
   void i32(std::int32_t v) { number(static_cast<std::uint32_t>(v), 4); }
-  void f32(float v) { number(floatBits(v), 4); }
-  void f64(double v) { number(doubleBits(v), 8); }
+  void f32(float v) { number(bitCast<std::uint32_t>(v), 4); }
+  void f64(double v) { number(bitCast<std::uint64_t>(v), 8); }
   void pose(const Pose& p)
   {
     for (int i = 0; i < 3; ++i)
@@ -201,7 +183,7 @@ public:
   std::uint32_t u32() { return static_cast<std::uint32_t>(number(4)); }
   std::uint64_t u64() { return number(8); }
   std::int32_t i32() { return static_cast<std::int32_t>(static_cast<std::uint32_t>(number(4))); }
-  double f64() { return bitsDouble(number(8)); }
+  double f64() { return bitCast<double>(number(8)); }
   bool flag(const char* what)
   {
     const std::uint8_t v = u8();
@@ -288,7 +270,7 @@ void writeCloud(Writer& w, const std::shared_ptr<const Cloud>& cloud)
   {
     for (const float f : { q.x, q.y, q.z, q.intensity })
     {
-      putBytes(p, floatBits(f), 4);
+      putBytes(p, bitCast<std::uint32_t>(f), 4);
       p += 4;
     }
   }
@@ -310,10 +292,10 @@ std::shared_ptr<const Cloud> readCloud(Reader& r, const std::string& what)
   for (Point& q : cloud->points)
   {
     q = Point{};
-    q.x = bitsFloat(static_cast<std::uint32_t>(getBytes(p, 4)));
-    q.y = bitsFloat(static_cast<std::uint32_t>(getBytes(p + 4, 4)));
-    q.z = bitsFloat(static_cast<std::uint32_t>(getBytes(p + 8, 4)));
-    q.intensity = bitsFloat(static_cast<std::uint32_t>(getBytes(p + 12, 4)));
+    q.x = bitCast<float>(static_cast<std::uint32_t>(getBytes(p, 4)));
+    q.y = bitCast<float>(static_cast<std::uint32_t>(getBytes(p + 4, 4)));
+    q.z = bitCast<float>(static_cast<std::uint32_t>(getBytes(p + 8, 4)));
+    q.intensity = bitCast<float>(static_cast<std::uint32_t>(getBytes(p + 12, 4)));
     p += kPointBytes;
     if (!isFinite(q) || !std::isfinite(q.intensity))
     {
@@ -375,7 +357,7 @@ Keyframe readKeyframe(Reader& r, std::size_t index)
     {
       for (Eigen::Index j = 0; j < cells.cols(); ++j, p += 4)
       {
-        cells(i, j) = bitsFloat(static_cast<std::uint32_t>(getBytes(p, 4)));
+        cells(i, j) = bitCast<float>(static_cast<std::uint32_t>(getBytes(p, 4)));
       }
     }
     if (!cells.allFinite() || (cells.array() < 0.0f).any())

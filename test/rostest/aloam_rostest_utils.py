@@ -13,6 +13,7 @@ import math
 import os
 import re
 import shutil
+import signal
 import subprocess
 import tempfile
 import threading
@@ -97,6 +98,17 @@ class ScratchTestCase(unittest.TestCase):
 
     def path(self, name):
         return os.path.join(self.scratch, name)
+
+
+def stop_launch(process):
+    """Stops a roslaunch started in a session of its own: SIGINT to its group, SIGKILL after 30 s."""
+    if process is None or process.poll() is not None:
+        return
+    os.killpg(process.pid, signal.SIGINT)
+    try:
+        process.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        os.killpg(process.pid, signal.SIGKILL)
 
 
 # --------------------------------------------------------------------------------------------------------

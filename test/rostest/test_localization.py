@@ -19,7 +19,6 @@ equal the answered sensor pose seen through the extrinsic.
 """
 import math
 import os
-import signal
 import subprocess
 import time
 
@@ -111,13 +110,7 @@ class TestLocalization(u.ScratchTestCase):
                                          start_new_session=True)
 
     def tearDown(self):
-        launched = getattr(self, "launched", None)
-        if launched is not None and launched.poll() is None:
-            os.killpg(launched.pid, signal.SIGINT)
-            try:
-                launched.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                os.killpg(launched.pid, signal.SIGKILL)
+        u.stop_launch(getattr(self, "launched", None))
 
     def test_localize_other_drive(self):
         pcd, map_origin = self.make_map()

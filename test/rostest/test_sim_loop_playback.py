@@ -13,7 +13,6 @@ The bounds are about 1.5x this pipeline's figures on the draw (in the comment; a
 figures of docs/loop_closure.md on the same sweeps). Update them when the core changes.
 """
 import os
-import signal
 import subprocess
 import time
 
@@ -48,13 +47,7 @@ SECOND_LAUNCH = """<launch>
 class TestSimLoopPlayback(u.ScratchTestCase):
 
     def tearDown(self):
-        launched = getattr(self, "launched", None)
-        if launched is not None and launched.poll() is None:
-            os.killpg(launched.pid, signal.SIGINT)
-            try:
-                launched.wait(timeout=30)
-            except subprocess.TimeoutExpired:
-                os.killpg(launched.pid, signal.SIGKILL)
+        u.stop_launch(getattr(self, "launched", None))
 
     def test_loop_block(self):
         diagnostics = u.DiagnosticsWatcher()
