@@ -209,14 +209,21 @@ std::size_t LoopClosure::nearestLoaded(const Eigen::Vector3d& position, bool wit
   return nearest;
 }
 
+bool isKeyframeStep(const Pose& last, const Pose& pose, const LoopClosureConfig& config)
+{
+  const Pose step = last.inverse() * pose;
+  return step.t.norm() >= config.keyframe_distance || rotationAngle(step.q) >= config.keyframe_angle;
+}
+
+std::optional<Pose> LoopClosure::keyframeReference() const
+{
+  return keyframes_.size() == session_begin_ ? std::nullopt : std::optional<Pose>(last_input_);
+}
+
 bool LoopClosure::isKeyframe(const Pose& pose) const
 {
-  if (keyframes_.size() == session_begin_)
-  {
-    return true;
-  }
-  const Pose step = last_input_.inverse() * pose;
-  return step.t.norm() >= config_.keyframe_distance || rotationAngle(step.q) >= config_.keyframe_angle;
+  const std::optional<Pose> last = keyframeReference();
+  return !last || isKeyframeStep(*last, pose, config_);
 }
 
 bool LoopClosure::separated(const Keyframe& a, const Keyframe& b) const

@@ -22,6 +22,7 @@ MappingSession::MappingSession(const MappingSessionConfig& config, std::shared_p
   , trajectory_max_poses_(config.trajectory_max_poses)
   , mapping_(config.mapping, std::move(executor))
   , loop_enabled_(config.loop_closure)
+  , loop_gate_(config.loop)
   , loops_(config.loop)
 {
 }
@@ -32,6 +33,7 @@ void MappingSession::setLoopClosure(bool enabled, const LoopClosureConfig& confi
   loops_.setConfig(config);
   std::lock_guard<std::mutex> lock(core_mutex_);
   loop_enabled_ = enabled;
+  loop_gate_ = config;
 }
 
 bool MappingSession::loopClosureEnabled() const
@@ -112,6 +114,7 @@ LoopStep MappingSession::closeLoops()
   {
     std::lock_guard<std::mutex> lock(core_mutex_);
     stats_.loops = loops_.stats();
+    keyframe_reference_ = loops_.keyframeReference();
     return step;
   }
   // The corrected map is built off the core lock too; the lock only swaps it in.
@@ -141,6 +144,7 @@ LoopStep MappingSession::closeLoops()
   // Every recorded pose follows the newest keyframe of this run at or before it (the run's first keyframe
   // for the poses before it: the graph holds it fixed unless the run continues a loaded graph).
   loops_.correctPoses(trajectory_.stamps, step.update.keyframes_before, trajectory_.poses);
+  keyframe_reference_ = loops_.keyframeReference();
   step.rebuild_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
   stats_.loops = loops_.stats();
   stats_.last_rebuild_ms = step.rebuild_ms;
@@ -233,7 +237,9 @@ bool MappingSession::updateMapLocked(OdometryFrame* added, MappingResult* result
   }
   mapping_.updateMap(stats_.last);
   ++stats_.frames_mapped;
-  if (loop_enabled_ && !unmapped_.distorted)
+  // Only a frame that would become a keyframe is copied for the loop closure (which decides again).
+  if (loop_enabled_ && !unmapped_.distorted &&
+      (!keyframe_reference_ || isKeyframeStep(*keyframe_reference_, stats_.last.pose, loop_gate_)))
   {
     to_offer_ = MappedFrame{ stats_.last.stamp,
                              stats_.last.pose,
@@ -260,6 +266,7 @@ void MappingSession::resetLocked()
 {
   mapping_.reset();
   to_offer_.reset();
+  keyframe_reference_.reset();
   ++map_epoch_;
   loop_reset_pending_ = true;  // the loop closure forgets its keyframes at the next closeLoops()
   stats_.frames_in_map = 0;

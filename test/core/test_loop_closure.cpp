@@ -560,7 +560,7 @@ TEST(LoopClosureSessionTest, ClosesLoopsOffThePosePathAndCorrectsTheTrajectory)
   config.loop = shortRunConfig();
   MappingSession session(config);
   const Eigen::Isometry3d origin = drive(0.1);
-  std::size_t optimized = 0;
+  std::size_t optimized = 0, frames = 0, offered = 0, offered_keyframes = 0;
   Pose last_answer, first_pose;
   for (int k = 0; 0.1 * (k + 1) <= duration; ++k)
   {
@@ -580,6 +580,9 @@ TEST(LoopClosureSessionTest, ClosesLoopsOffThePosePathAndCorrectsTheTrajectory)
     session.updateMap();
     const LoopStep step = session.closeLoops();
     optimized += step.update.optimized;
+    ++frames;
+    offered += step.offered;
+    offered_keyframes += step.update.keyframe;
     if (step.update.optimized)
     {
       EXPECT_GT(step.rebuild_ms, 0.0);
@@ -596,6 +599,9 @@ TEST(LoopClosureSessionTest, ClosesLoopsOffThePosePathAndCorrectsTheTrajectory)
       stats.loops.keyframes, stats.loops.accepted, stats.loops.tried, optimized, end_error, stats.last_rebuild_ms);
   EXPECT_GE(stats.loops.accepted, 1u);
   EXPECT_EQ(optimized, stats.loops.optimizations);
+  // Only frames that become keyframes are copied and offered.
+  EXPECT_EQ(offered, offered_keyframes);
+  EXPECT_LT(offered, frames);
   EXPECT_LT(end_error, 0.3);
   EXPECT_GT(stats.loops.cloud_bytes, 0u);
   // The graph holds the first keyframe: the poses up to it stay where mapping put them.

@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -183,6 +184,10 @@ struct LoopClosureStats
   double last_optimize_ms = 0.0;
 };
 
+/// Whether a frame at `pose` has moved far enough from `last`, the previous keyframe's input pose, to become a
+/// keyframe (LoopClosureConfig::keyframe_distance, keyframe_angle).
+bool isKeyframeStep(const Pose& last, const Pose& pose, const LoopClosureConfig& config);
+
 /// A loop edge's square-root information (PoseGraphEdge): the sigmas (translation m, rotation rad) along
 /// the directions the registration constrained; along each weak one (in the frame of `to`, rotation parts as
 /// the motion at `lever_arm` metres) only its share of that information, none where the share is unknown.
@@ -229,6 +234,9 @@ public:
   /// Index of the current run's newest keyframe at or before `stamp` (the run's first when none is older;
   /// keyframes().size() while the run has none). Loaded keyframes are never returned.
   std::size_t keyframeAt(double stamp) const;
+  /// The input pose the next keyframe is measured from (isKeyframeStep); none before the run's first keyframe,
+  /// when any frame becomes one.
+  std::optional<Pose> keyframeReference() const;
   /// Moves poses recorded at `stamps` as the last optimization moved their keyframes: each follows the
   /// keyframe keyframeAt(its stamp), from its pose in `before` (LoopUpdate::keyframes_before) to its pose now.
   void correctPoses(const std::vector<double>& stamps, const std::vector<Pose>& before, std::vector<Pose>& poses) const;

@@ -170,6 +170,10 @@ private:
   std::size_t map_epoch_ = 0;  ///< map rebuilds and resets so far: a frame of an older epoch is not offered
   bool loop_enabled_ = false;
   bool loop_reset_pending_ = false;  ///< the map was reset: the loop closure starts over too
+  /// The loop closure's keyframe rule as of its last frame (LoopClosure::keyframeReference), so that a frame
+  /// that cannot become a keyframe is not copied for it.
+  std::optional<Pose> keyframe_reference_;
+  LoopClosureConfig loop_gate_;
   mutable std::mutex loop_mutex_;
   LoopClosure loops_;
 };
