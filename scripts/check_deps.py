@@ -43,7 +43,7 @@ CXX_SUFFIXES = (".c", ".cc", ".cpp", ".cxx", ".h", ".hh", ".hpp", ".hxx")
 
 # rosdep keys of what is not a ROS package of the same name.
 PYTHON_KEYS = {"numpy": "python3-numpy", "matplotlib": "python3-matplotlib", "rospkg": "python3-rospkg",
-               "yaml": "python3-yaml"}
+               "yaml": "python3-yaml", "scipy": "python3-scipy"}
 INCLUDE_KEYS = {"pcl": "libpcl-all-dev", "ceres": "libceres-dev", "Eigen": "eigen", "boost": "boost",
                 "gtest": "gtest", "sys": None}
 CMAKE_KEYS = {"Eigen3": "eigen", "Ceres": "libceres-dev", "PCL": "libpcl-all-dev", "GTest": "gtest"}

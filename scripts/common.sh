@@ -22,7 +22,7 @@ ALOAM_DEBIAN_PACKAGES=(
   libdynamic-reconfigure-config-init-mutex-dev python3-dynamic-reconfigure libdiagnostic-updater-dev
   python3-rostest librostest-dev python3-rosbag python3-nodelet python3-roslaunch libgtest-dev
   ros-message-generation ros-message-runtime python3-genmsg python3-gencpp python3-genpy libstd-msgs-dev
-  python3-numpy python3-rospy python3-tf2-ros rviz python3-matplotlib
+  python3-numpy python3-scipy python3-rospy python3-tf2-ros rviz python3-matplotlib
   python3-diagnostic-msgs python3-std-srvs python3-nav-msgs python3-sensor-msgs rosbash
   git clang-format python3-rosdep2
   libunwind-dev
