@@ -55,6 +55,31 @@ void insertSweep(CubeMap& map, const Cloud* corners, const Cloud* surfs, const P
     cloud == corners ? map.insertCorners(world) : map.insertSurfs(world);
   }
 }
+
+// For an edge point `p` (sensor frame) matched to a line of unit direction `u` (map frame) at `pose`: the
+// direction across the rings perpendicular to the line (map frame) when the configuration leaves it free
+// (LaserMappingConfig::line_ring_crossing_deg), else zero. The cone's normal at p points to higher elevations.
+Eigen::Vector3d acrossRings(const Point& p, const Pose& pose, const Eigen::Vector3d& u,
+                            const LaserMappingConfig& config)
+{
+  const double horizontal = std::hypot(double(p.x), double(p.y));
+  const double range = std::hypot(horizontal, double(p.z));
+  if (!(config.line_ring_crossing_deg > 0.0) || !(horizontal > 0.0) || range < config.line_ring_crossing_min_range)
+  {
+    return Eigen::Vector3d::Zero();
+  }
+  const double sin_elevation = p.z / range;
+  const Eigen::Vector3d cone_normal(-sin_elevation * p.x / horizontal, -sin_elevation * p.y / horizontal,
+                                    horizontal / range);
+  const Eigen::Vector3d line = pose.q.conjugate() * u;  // sensor frame
+  const double along = cone_normal.dot(line);
+  if (std::fabs(along) >= std::sin(config.line_ring_crossing_deg * M_PI / 180.0))
+  {
+    return Eigen::Vector3d::Zero();
+  }
+  // |along| < 1, so the part of the cone normal perpendicular to the line is not zero.
+  return pose.q * (cone_normal - along * line).normalized();
+}
 }  // namespace
 
 LaserMapping::LaserMapping(LaserMappingConfig config, std::shared_ptr<Executor> executor)
@@ -136,24 +161,30 @@ bool LaserMapping::fitNeighbours(const KdTree& tree, const Cloud& cloud, const P
 bool LaserMapping::matchEdge(const Point& p, const Pose& pose, LineMatch& match, SearchMemo* memo) const
 {
   const Point query = transformPoint(pose, p);
-  return recall(memo, query,
-                [&]
-                {
-                  thread_local Neighbourhood fit;
-                  if (!fitNeighbours(corner_tree_, submap_corners_, query, config_.line_neighbours,
-                                     config_.line_max_sq_distance, fit, memo))
-                  {
-                    return false;
-                  }
-                  // A line has one dominant direction.
-                  const Eigen::Vector3d& lambda = fit.eigen.eigenvalues();
-                  if (!(lambda[2] > config_.line_eigen_ratio * lambda[1]))
-                  {
-                    return false;
-                  }
-                  match = LineMatch{ vec(p), fit.centroid, fit.eigen.eigenvectors().col(2) };
-                  return true;
-                });
+  const bool found = recall(memo, query,
+                            [&]
+                            {
+                              thread_local Neighbourhood fit;
+                              if (!fitNeighbours(corner_tree_, submap_corners_, query, config_.line_neighbours,
+                                                 config_.line_max_sq_distance, fit, memo))
+                              {
+                                return false;
+                              }
+                              // A line has one dominant direction.
+                              const Eigen::Vector3d& lambda = fit.eigen.eigenvalues();
+                              if (!(lambda[2] > config_.line_eigen_ratio * lambda[1]))
+                              {
+                                return false;
+                              }
+                              match = LineMatch{ vec(p), fit.centroid, fit.eigen.eigenvectors().col(2) };
+                              return true;
+                            });
+  if (found)
+  {
+    // Outside the memo: the axis depends on the pose, which moves between searches.
+    match.free_axis = acrossRings(p, pose, match.direction, config_);
+  }
+  return found;
 }
 
 bool LaserMapping::matchPlane(const Point& p, const Pose& pose, PlaneMatch& match, SearchMemo* memo) const
@@ -496,7 +527,7 @@ MatchFitness LaserMapping::fitness(const Cloud& corners, const Cloud& surfs, con
       LineMatch m;
       if (matchEdge(corners.points[i], pose, m))
       {
-        count((pose * m.point - m.a).cross(m.direction).norm());
+        count((freeAxisProjection(m) * (pose * m.point - m.a).cross(m.direction)).norm());
       }
     }
   }

@@ -62,6 +62,14 @@ void robustify(int n, double delta, double* r, std::initializer_list<std::pair<d
 }
 }  // namespace
 
+Eigen::Matrix3d freeAxisProjection(const LineMatch& m)
+{
+  // An offset d (perpendicular to u) gives r = d x u; its part along the free axis f gives (d . f) g with
+  // g = f x u, and r . g = d . f. Removing r's component along g removes exactly that part.
+  const Eigen::Vector3d g = m.free_axis.cross(m.direction);
+  return Eigen::Matrix3d::Identity() - g * g.transpose();
+}
+
 PoseTerms::PoseTerms(const double* q, const double* t_data) : t(t_data[0], t_data[1], t_data[2])
 {
   const Eigen::Vector3d v(q[0], q[1], q[2]);
@@ -89,9 +97,10 @@ Eigen::Matrix<double, 4, 3> quaternionPlusJacobian(const double* q)
 
 void evaluateLine(const LineMatch& m, const PoseTerms& pose, double* r, double* jq, double* jt)
 {
-  // r = (x - a) x u
+  // r = P ((x - a) x u), P = I without the free axis (freeAxisProjection)
   const Eigen::Vector3d& u = m.direction;
-  const Eigen::Vector3d residual = (pose.a * m.point + pose.t - m.a).cross(u);
+  const Eigen::Matrix3d keep = freeAxisProjection(m);
+  const Eigen::Vector3d residual = keep * (pose.a * m.point + pose.t - m.a).cross(u);
   r[0] = residual.x();
   r[1] = residual.y();
   r[2] = residual.z();
@@ -99,7 +108,7 @@ void evaluateLine(const LineMatch& m, const PoseTerms& pose, double* r, double* 
   {
     for (int c = 0; c < 4; ++c)
     {
-      const Eigen::Vector3d column = (pose.d[c] * m.point).cross(u);
+      const Eigen::Vector3d column = keep * (pose.d[c] * m.point).cross(u);
       jq[c] = column.x();
       jq[4 + c] = column.y();
       jq[8 + c] = column.z();
@@ -108,7 +117,7 @@ void evaluateLine(const LineMatch& m, const PoseTerms& pose, double* r, double* 
   if (jt != nullptr)
   {
     Eigen::Map<RowMajor33> dt(jt);
-    dt = -cross(u);  // d((x - a) x u) / dx
+    dt = -keep * cross(u);  // d((x - a) x u) / dx
   }
 }
 
@@ -192,7 +201,14 @@ void accumulateMatches(const std::vector<LineMatch>& lines, const std::vector<Pl
       TangentRows<3> j;
       j.leftCols<3>() = 2.0 * (y * u.transpose() - u.dot(y) * Eigen::Matrix3d::Identity());
       j.rightCols<3>() = -cross(u);
-      addRows<3>((y + pose.t - m.a).cross(u), j, huber_delta, upper, gradient, cost);
+      Eigen::Vector3d r = (y + pose.t - m.a).cross(u);
+      if (!m.free_axis.isZero(0.0))
+      {
+        const Eigen::Matrix3d keep = freeAxisProjection(m);
+        r = keep * r;
+        j = keep * j;
+      }
+      addRows<3>(r, j, huber_delta, upper, gradient, cost);
     }
     else
     {

@@ -49,6 +49,17 @@ struct LaserMappingConfig
   /// neighbours often lie just beyond 1 m, and 2 m^2 measured better on KITTI 00 (drift 1.28 % vs 1.30 %).
   double line_max_sq_distance = 2.0;
   double line_eigen_ratio = 3.0;  ///< a line needs its largest eigenvalue this times the next
+  /// An edge point's line that crosses the scan cone of the point (the cone its beam sweeps as the sensor
+  /// spins) at less than this angle (deg) leaves the point free across the rings: the match measures only
+  /// the offset along the other direction perpendicular to the line. Such lines are mostly traces of one
+  /// ring on a smooth surface (returns whose curvature comes from their spacing, or from a corner or gap a
+  /// few returns away), and where a ring meets a surface moves with the sensor: matched in full, they
+  /// pitched the pose nose up and the map climbed on flat ground (docs/accuracy.md#vertical-drift-on-flat-
+  /// ground). 0: every residual in full (A-LOAM).
+  double line_ring_crossing_deg = 30.0;
+  /// ... for points at least this far (m). Nearer, the rings lie close together on a surface and lines
+  /// along them are mostly real edges (ceiling and door lines indoors), which keep their full residual.
+  double line_ring_crossing_min_range = 15.0;
   /// Map points fitted per plane point. On sparse maps (16 beams) five neighbours are often one scan line
   /// plus a stray point, which fit a plane exactly with a false normal near wall bases and curbs. More
   /// neighbours fixed that on a synthetic VLP-16 drive but cost accuracy on KITTI, so the default stays

@@ -14,6 +14,10 @@ namespace aloam
 struct LineMatch
 {
   Eigen::Vector3d point, a, direction;
+  /// A unit vector perpendicular to `direction`, or zero: the match then does not measure the point's offset
+  /// from the line along this axis, only along the other one perpendicular to the line (mapping sets it for
+  /// lines that lie almost in the scan cone of their point: LaserMappingConfig::line_ring_crossing_deg).
+  Eigen::Vector3d free_axis = Eigen::Vector3d::Zero();
 };
 
 /// A point of the current sweep matched to a plane of the reference: normal . x + d = 0.
@@ -91,6 +95,10 @@ struct NormalTerms
 /// rounding, at about half the arithmetic: the tangent Jacobian is taken directly.
 void accumulateMatches(const std::vector<LineMatch>& lines, const std::vector<PlaneMatch>& planes, int begin, int end,
                        const PoseTerms& pose, double huber_delta, NormalTerms& terms);
+
+/// The projection a line match's residual (x - a) x u goes through: the identity without a free axis, else
+/// the identity less the residual direction that only the offset along the free axis moves.
+Eigen::Matrix3d freeAxisProjection(const LineMatch& m);
 
 /// The residual of one match at `pose` without any loss (3 values for a line, 1 for a plane) into `r`, and
 /// its row-major Jacobians into `jq` (rows x 4) and `jt` (rows x 3), which may be null.
