@@ -633,13 +633,15 @@ void LoopClosure::verify(LoopRecord& record) const
   const double path = current.session == target.session ? current.path - target.path : current.path;
   const double max_move = config_.max_correction + config_.max_correction_rate * path;
   const double max_turn = config_.max_correction_angle + config_.max_correction_angle_rate * path;
-  // A loop that leaves a rotation weak would carry the current keyframe's attitude error into the map
-  // (corridor loops kept their roll error, docs/loop_closure.md); weak translations are accepted.
+  // A loop that leaves a rotation weak, even mixed with a translation, would carry the current keyframe's
+  // attitude error into the map (corridor loops kept their roll error, docs/loop_closure.md); weak
+  // translations are accepted.
+  const double max_rotation = config_.max_weak_rotation;
   const bool partial =
       best.status == MappingStatus::kRemapped &&
       static_cast<int>(best.degenerate.size()) <= config_.max_weak_directions &&
       std::none_of(best.degenerate.begin(), best.degenerate.end(),
-                   [](const DegenerateDirection& d) { return d.rotation.norm() > d.translation.norm(); });
+                   [max_rotation](const DegenerateDirection& d) { return d.rotation.norm() > max_rotation; });
   if (best.status != MappingStatus::kOk && !partial)
   {
     record.reason = best.status == MappingStatus::kMapTooSmall ? "target submap too small"

@@ -56,11 +56,15 @@ struct LoopClosureConfig
   double inlier_residual = 0.2;
   double min_inlier_share = 0.35;
   double max_mean_residual = 0.1;
-  /// A registration weak along at most this many directions, each mostly a translation (mapping's
+  /// A registration weak along at most this many directions, each a translation (mapping's
   /// MappingStatus::kRemapped, such as a corridor's axis), is accepted too; its loop edge carries along each
-  /// weak direction only that direction's share of the constraint (loopSqrtInformation). A weak rotation is
-  /// always rejected. 0: only fully constrained registrations.
+  /// weak direction only that direction's share of the constraint (loopSqrtInformation). 0: only fully
+  /// constrained registrations.
   int max_weak_directions = 2;
+  /// A weak direction whose rotation part (of the unit 6-vector, rotations scaled by the lever arm, see
+  /// DegenerateDirection) exceeds this is rejected: along it the loop keeps the current keyframe's own
+  /// attitude error (a narrow corridor's up-down-with-roll direction carried 1.5-2.6 deg, docs/loop_closure.md).
+  double max_weak_rotation = 0.25;
   /// The correction a loop implies must be one that drift could have made over the path between the two
   /// keyframes: at most max_correction + max_correction_rate * path (m), and the rotation at most
   /// max_correction_angle + max_correction_angle_rate * path (rad). Rejects look-alike places far away.
