@@ -449,6 +449,7 @@ void LaserMappingNodelet::reconfigureCb(const LaserMappingConfig& c)
   loop.min_inlier_share = c.loop_min_inlier_share;
   loop.max_mean_residual = c.loop_max_mean_residual;
   loop.max_weak_directions = c.loop_max_weak_directions;
+  loop.max_weak_rotation = c.loop_max_weak_rotation;
   loop.max_descriptor_distance = c.loop_max_descriptor_distance;
   session_->setLoopClosure(c.loop_closure, loop);
   // Waits for the frame being mapped; a new cube size re-buckets the map (no point is lost).

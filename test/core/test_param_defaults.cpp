@@ -177,6 +177,7 @@ std::map<std::string, Defaults> structDefaults()
       { "loop_min_inlier_share", str(loop.min_inlier_share) },
       { "loop_max_mean_residual", str(loop.max_mean_residual) },
       { "loop_max_weak_directions", str(loop.max_weak_directions) },
+      { "loop_max_weak_rotation", str(loop.max_weak_rotation) },
       { "loop_max_descriptor_distance", str(loop.max_descriptor_distance) },
   });
   return d;
