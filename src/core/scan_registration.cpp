@@ -29,8 +29,9 @@ constexpr double kFullTurnMargin = 5.0 * M_PI / 180.0;
 enum Pick : std::uint8_t
 {
   kFree = 0,
-  kTaken = 1,      // chosen as a feature or suppressed next to one
-  kUnreliable = 2  // occluded or grazing: never a sharp or flat feature (still less flat, as in LOAM)
+  kTaken = 1,       // chosen as a feature or suppressed next to one
+  kUnreliable = 2,  // occluded or grazing: never a sharp or flat feature (still less flat, as in LOAM)
+  kNoEdge = 3       // beside a gap a surface runs on across: may be flat, never sharp
 };
 
 enum Label : std::int8_t
@@ -140,6 +141,28 @@ bool gapIsContinuous(const Cloud& full, int i, int begin, int end, float toleran
   const Point& b = full.points[i + 1];
   return continuesLine(b, a, full.points[std::max(i - 2, begin)], tolerance, cap) ||
          continuesLine(a, b, full.points[std::min(i + 3, end - 1)], tolerance, cap);
+}
+
+// True when the returns k-w .. k+w all lie within `tolerance` (m) of the line through the two ends: a
+// surface sampled unevenly (a wall at a grazing angle), whose LOAM curvature is high but which has no edge.
+bool windowIsStraight(const Cloud& full, int k, int w, int begin, int end, double tolerance)
+{
+  const int lo = std::max(k - w, begin), hi = std::min(k + w, end - 1);
+  const Eigen::Vector3f first = full.points[lo].getVector3fMap();
+  const Eigen::Vector3f axis = full.points[hi].getVector3fMap() - first;
+  const float length = axis.norm();
+  if (length < 1e-3f)
+  {
+    return false;
+  }
+  for (int j = lo + 1; j < hi; ++j)
+  {
+    if ((full.points[j].getVector3fMap() - first).cross(axis).norm() > tolerance * length)
+    {
+      return false;
+    }
+  }
+  return true;
 }
 }  // namespace
 
@@ -352,16 +375,23 @@ void ScanRegistration::markUnreliable(const Cloud& full, int begin, int end, Reg
       const float bearing = std::sqrt(dx * dx + dy * dy + dz * dz);
       const float tolerance = static_cast<float>(config_.occlusion_continuity);
       const float cap = static_cast<float>(config_.occlusion_continuity_cap);
-      if (bearing < config_.occlusion_max_bearing &&
-          !(tolerance > 0.0f && gapIsContinuous(full, i, begin, end, tolerance, cap)))
+      if (bearing < config_.occlusion_max_bearing)
       {
-        if (ra > rb)
+        const bool continuous = tolerance > 0.0f && gapIsContinuous(full, i, begin, end, tolerance, cap);
+        const int from = ra > rb ? i - w : i + 1;  // the far side: a lies behind b's edge, or b behind a's
+        if (!continuous)
         {
-          mark(i - w, i, stats.occluded);  // a lies behind b's edge
+          mark(from, from + w, stats.occluded);
         }
-        else
+        else if (config_.occlusion_straight_tolerance > 0.0)
         {
-          mark(i + 1, i + 1 + w, stats.occluded);  // b lies behind a's edge
+          for (int k = std::max(from, begin); k <= std::min(from + w, end - 1); ++k)
+          {
+            if (picked[k] == kFree && windowIsStraight(full, k, w, begin, end, config_.occlusion_straight_tolerance))
+            {
+              picked[k] = kNoEdge;
+            }
+          }
         }
       }
     }
@@ -387,7 +417,7 @@ void ScanRegistration::suppressNeighbours(const Cloud& full, int index, int ring
     {
       break;
     }
-    if (picked[index + l] == kFree)
+    if (picked[index + l] == kFree || picked[index + l] == kNoEdge)
     {
       picked[index + l] = kTaken;
     }
@@ -398,7 +428,7 @@ void ScanRegistration::suppressNeighbours(const Cloud& full, int index, int ring
     {
       break;
     }
-    if (picked[index - l] == kFree)
+    if (picked[index - l] == kFree || picked[index - l] == kNoEdge)
     {
       picked[index - l] = kTaken;
     }
@@ -445,12 +475,13 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, RingGro
 
   // Planes: the free candidates below the threshold, flattest first, ties to the lower index.
   takeBestFirst(
-      begin, end, config_.max_flat_per_sector, [&](int i) { return curvature[i] < threshold && picked[i] == kFree; },
+      begin, end, config_.max_flat_per_sector,
+      [&](int i) { return curvature[i] < threshold && (picked[i] == kFree || picked[i] == kNoEdge); },
       // Complemented as a whole: the flattest has the largest key, ties still to the lower index.
       [&](int i) { return ~sortKey(curvature[i], static_cast<std::uint32_t>(i)); },
       [&](int i)
       {
-        if (picked[i] != kFree)
+        if (picked[i] != kFree && picked[i] != kNoEdge)
         {
           return false;
         }

@@ -143,6 +143,8 @@ void ScanRegistrationNodelet::reconfigureCb(ScanRegistrationConfig& c, std::uint
   config.less_flat_leaf_size = c.less_flat_leaf_size;
   config.curvature_threshold = c.curvature_threshold;
   config.reject_occluded = c.reject_occluded;
+  config.occlusion_continuity = c.occlusion_continuity;
+  config.occlusion_straight_tolerance = c.occlusion_straight_tolerance;
   registration_->setConfig(config);  // applies from the next sweep
 }
 

@@ -96,7 +96,11 @@ constexpr const char* kUsage =
     "                     scan_registration's reject_occluded (default: on, off for --kitti)\n"
     "  --occlusion-continuity X\n"
     "                     scan_registration's occlusion_continuity: a gap that a surface runs on across\n"
-    "                     (within X times the gap) is no occlusion (default 0: every gap, as LOAM)\n"
+    "                     (within X times the gap) is no occlusion (default 0.15; 0: every gap, as LOAM)\n"
+    "  --occlusion-straight M\n"
+    "                     scan_registration's occlusion_straight_tolerance: the far side of such a gap\n"
+    "                     gives no edges where it lies on one line with the near side, within M metres\n"
+    "                     (default 0.05; 0: it may)\n"
     "  --no-motion-hypotheses\n"
     "                     odometry never tries other starts after a poor solve (laser_odometry's\n"
     "                     motion_hypotheses: false)\n"
@@ -121,7 +125,7 @@ struct Options
   bool motion_hypotheses = true;
   bool soft_remap = true;
   std::optional<bool> reject_occluded;
-  std::optional<double> occlusion_continuity;
+  std::optional<double> occlusion_continuity, occlusion_straight;
   std::size_t keep_every = 1;
   std::optional<double> odometry_min_constraint, mapping_min_constraint, nearby_elevation_deg;
   std::optional<double> minimum_range;
@@ -430,6 +434,11 @@ bool parse(int argc, char** argv, Options& o)
       value(number);
       o.occlusion_continuity = std::stod(number);
     }
+    else if (arg == "--occlusion-straight")
+    {
+      value(number);
+      o.occlusion_straight = std::stod(number);
+    }
     else if (arg == "--odometry-min-constraint")
     {
       value(number);
@@ -583,6 +592,10 @@ int main(int argc, char** argv)
   if (opt.occlusion_continuity)
   {
     config.registration.occlusion_continuity = *opt.occlusion_continuity;
+  }
+  if (opt.occlusion_straight)
+  {
+    config.registration.occlusion_straight_tolerance = *opt.occlusion_straight;
   }
   config.loop_closure = opt.loop_closure;
   config.loop.matching = config.mapping;

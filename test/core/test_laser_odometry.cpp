@@ -49,10 +49,13 @@ const std::vector<double> kKnownMotionPlaces = { 40.0, 60.0, 80.0, 120.0, 200.0 
 constexpr int kDriveSweeps = 10;
 constexpr double kSpeed = 10.0;  // m/s
 constexpr double kDriveStartX = 40.0;
-// Bound on the accumulated error after the drive: measured 3.7-8.3 cm / 0.40-0.64 deg final and up to
-// 8.5 cm on the way (default configurations while the core was tuned).
-constexpr double kMaxDriveTranslationError = 0.15;  // m
+// Bounds on the accumulated error after the drive, with LOAM's occlusion rule and with the default
+// exemption of gaps a surface runs on across, which costs this street's scan-to-scan odometry (mapping
+// gains; docs/accuracy_families.md): about 1.5x the figures measured on it.
+constexpr double kMaxDriveTranslationError = 0.15;  // m, LOAM's rule
 constexpr double kMaxDriveRotationErrorDeg = 1.2;
+constexpr double kMaxDriveTranslationErrorExempt = 0.28;  // m, the default
+constexpr double kMaxDriveRotationErrorDegExempt = 1.5;
 
 // Distorted sweeps: 10 m/s with a 30 deg/s yaw rate over every sweep.
 constexpr double kYawRateDegPerSecond = 30.0;
@@ -72,9 +75,12 @@ ScanRegistrationConfig registrationConfig(const SensorModel& sensor)
   return config;
 }
 
-std::shared_ptr<const FeatureSet> features(const Cloud& cloud, const SensorModel& sensor, double stamp, bool has_time)
+std::shared_ptr<const FeatureSet> features(const Cloud& cloud, const SensorModel& sensor, double stamp, bool has_time,
+                                           double occlusion_continuity = ScanRegistrationConfig{}.occlusion_continuity)
 {
-  ScanRegistration registration(registrationConfig(sensor));
+  ScanRegistrationConfig config = registrationConfig(sensor);
+  config.occlusion_continuity = occlusion_continuity;
+  ScanRegistration registration(config);
   auto f = std::make_shared<FeatureSet>();
   EXPECT_TRUE(registration.process(cloud, stamp, true, has_time, *f));
   return f;
@@ -229,33 +235,45 @@ TEST(LaserOdometryTest, RecoversKnownMotionWithHdl64)
   EXPECT_LE(r_err, kMaxHdl64RotationErrorDeg);
 }
 
-// Ten static sweeps 1 m apart (10 m/s): the accumulated pose stays within the measured bound.
+// Ten static sweeps 1 m apart (10 m/s): the accumulated pose stays within the measured bound, with LOAM's
+// occlusion rule and with the default exemption.
 TEST(LaserOdometryTest, TenSweepDriveAccumulatesLittleError)
 {
   const SensorModel sensor = ts::preset("VLP16");
   const double step = kSpeed * sensor.scanPeriod();
   const Eigen::Isometry3d origin = ts::streetPose(kDriveStartX);
-  LaserOdometry odometry;
-  double worst = 0.0;
-  OdometryFrame frame;
-  for (int k = 0; k < kDriveSweeps; ++k)
+  struct Rule
   {
-    const Eigen::Isometry3d pose = ts::streetPose(kDriveStartX + step * k);
-    frame = odometry.process(features(ts::staticSweep(sensor, pose), sensor, 0.1 * (k + 1), true));
-    const Pose truth = ts::toPose(origin.inverse() * pose);
-    worst = std::max(worst, ts::translationError(frame.pose, truth));
-    if (k > 0)
+    const char* name;
+    double continuity, max_translation, max_rotation_deg;
+  };
+  for (const Rule& rule : { Rule{ "LOAM's occlusion rule", 0.0, kMaxDriveTranslationError, kMaxDriveRotationErrorDeg },
+                            Rule{ "default", ScanRegistrationConfig{}.occlusion_continuity,
+                                  kMaxDriveTranslationErrorExempt, kMaxDriveRotationErrorDegExempt } })
+  {
+    LaserOdometry odometry;
+    double worst = 0.0;
+    OdometryFrame frame;
+    for (int k = 0; k < kDriveSweeps; ++k)
     {
-      EXPECT_EQ(frame.status, OdometryStatus::kOk) << "sweep " << k;
+      const Eigen::Isometry3d pose = ts::streetPose(kDriveStartX + step * k);
+      frame = odometry.process(features(ts::staticSweep(sensor, pose), sensor, 0.1 * (k + 1), true, rule.continuity));
+      const Pose truth = ts::toPose(origin.inverse() * pose);
+      worst = std::max(worst, ts::translationError(frame.pose, truth));
+      if (k > 0)
+      {
+        EXPECT_EQ(frame.status, OdometryStatus::kOk) << rule.name << ", sweep " << k;
+      }
     }
+    const Pose truth = ts::toPose(origin.inverse() * ts::streetPose(kDriveStartX + step * (kDriveSweeps - 1)));
+    const double t_err = ts::translationError(frame.pose, truth);
+    const double r_err = ts::rotationErrorDeg(frame.pose, truth);
+    std::printf("[ measured ] %d-sweep drive, %s: final %.4f m, %.4f deg, worst %.4f m\n", kDriveSweeps, rule.name,
+                t_err, r_err, worst);
+    EXPECT_LE(t_err, rule.max_translation) << rule.name;
+    EXPECT_LE(worst, rule.max_translation) << rule.name;
+    EXPECT_LE(r_err, rule.max_rotation_deg) << rule.name;
   }
-  const Pose truth = ts::toPose(origin.inverse() * ts::streetPose(kDriveStartX + step * (kDriveSweeps - 1)));
-  const double t_err = ts::translationError(frame.pose, truth);
-  const double r_err = ts::rotationErrorDeg(frame.pose, truth);
-  std::printf("[ measured ] %d-sweep drive: final %.4f m, %.4f deg, worst %.4f m\n", kDriveSweeps, t_err, r_err, worst);
-  EXPECT_LE(t_err, kMaxDriveTranslationError);
-  EXPECT_LE(worst, kMaxDriveTranslationError);
-  EXPECT_LE(r_err, kMaxDriveRotationErrorDeg);
 }
 
 // Sweeps distorted by 10 m/s and 30 deg/s: with deskew on, the clouds handed on are undistorted (much

@@ -134,6 +134,8 @@ std::map<std::string, Defaults> structDefaults()
       { "less_flat_leaf_size", str(r.less_flat_leaf_size) },
       { "curvature_threshold", str(r.curvature_threshold) },
       { "reject_occluded", str(r.reject_occluded) },
+      { "occlusion_continuity", str(r.occlusion_continuity) },
+      { "occlusion_straight_tolerance", str(r.occlusion_straight_tolerance) },
       { "threads", str(r.threads) },
       { "max_points", str(reader.max_points) },
   });

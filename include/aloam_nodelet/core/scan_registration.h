@@ -38,13 +38,15 @@ struct ScanRegistrationConfig
   double occlusion_gap_sq = 0.1;       ///< consecutive points this far apart (m^2) may be an occlusion
   double occlusion_max_bearing = 0.1;  ///< ... if their bearings differ by less than this (rad)
   // A gap that either side's surface runs on across (a wall at a grazing angle, a concave corner) is no
-  // shadow: its far side keeps its features. 0 (the default) marks every such gap, as LOAM does; 0.15
-  // helps straight corridors but costs the street scenes (docs/accuracy_families.md), so it stays off.
-  double occlusion_continuity = 0.0;      ///< ... unless one side's line passes this close (times the gap) to the other
+  // shadow: its far side keeps its features (0 marks every gap, as LOAM does). Where the far side and the
+  // near side lie on one straight line, it is a wall sampled unevenly, whose curvature is high but which
+  // has no edge: it may give planes there, not edges. Measured in docs/accuracy_families.md.
+  double occlusion_continuity = 0.15;     ///< ... unless one side's line passes this close (times the gap) to the other
   double occlusion_continuity_cap = 0.2;  ///< ... and at most this close (m): far gaps to another object stay shadows
-  bool reject_grazing = false;            ///< no features on surfaces nearly parallel to the beam
-  double grazing_gap_ratio_sq = 0.0002;   ///< gap^2 to both neighbours above this * range^2
-  int threads = 2;                        ///< threads sharing the rings of a sweep (results do not depend on it)
+  double occlusion_straight_tolerance = 0.05;  ///< ... no edges on an exempt far side this straight (m); 0: no check
+  bool reject_grazing = false;                 ///< no features on surfaces nearly parallel to the beam
+  double grazing_gap_ratio_sq = 0.0002;        ///< gap^2 to both neighbours above this * range^2
+  int threads = 2;                             ///< threads sharing the rings of a sweep (results do not depend on it)
 };
 
 /// Turns one sweep into a FeatureSet. Holds only its configuration and reusable buffers; a sweep never
