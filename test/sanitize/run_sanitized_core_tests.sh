@@ -9,6 +9,17 @@ root="$(cd "$(dirname "$0")/../.." && pwd)"
 source "$root/test/sanitize/sanitize_common.sh"
 sanitize_build_core_tests "$root" "$out" test_core_sanitized -fsanitize=address,undefined \
   -fno-sanitize-recover=undefined || exit 1
+log="$out/test_core_sanitized.log"
+start=$SECONDS
+status=0
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-  "$out/test_core_sanitized" --gtest_brief=1 --gtest_filter="$(sanitize_gtest_filter)" | tail -n 3
+  sanitize_run_sharded "$log" "$out/test_core_sanitized" --gtest_brief=1 --gtest_filter="$(sanitize_gtest_filter)" ||
+  status=$?
+grep -E '^\[  (PASSED|FAILED)  \]' "$log" || true
+echo "ran the core tests under AddressSanitizer + UndefinedBehaviorSanitizer in $((SECONDS - start)) s (log: $log)"
+if [ "$status" -ne 0 ]; then
+  grep -m 1 -A 40 -E 'ERROR: AddressSanitizer|runtime error:|^\[  FAILED  \]' "$log" || tail -n 40 "$log"
+  echo "FAILED core tests under AddressSanitizer + UndefinedBehaviorSanitizer: exit $status (see $log)"
+  exit 1
+fi
 echo "PASSED core tests under AddressSanitizer + UndefinedBehaviorSanitizer"

@@ -13,8 +13,9 @@ sanitize_build_core_tests "$root" "$out" test_core_tsan -fsanitize=thread || exi
 log="$out/test_core_tsan.log"
 start=$SECONDS
 status=0
-TSAN_OPTIONS="$(tsan_options "$root")" "$out/test_core_tsan" --gtest_brief=1 --gtest_filter="$(sanitize_gtest_filter)" >"$log" 2>&1 || status=$?
-tail -n 3 "$log"
+TSAN_OPTIONS="$(tsan_options "$root")" sanitize_run_sharded "$log" "$out/test_core_tsan" --gtest_brief=1 \
+  --gtest_filter="$(tsan_gtest_filter)" || status=$?
+grep -E '^\[  (PASSED|FAILED)  \]' "$log" || true
 echo "ran the core tests under ThreadSanitizer in $((SECONDS - start)) s (log: $log)"
 reports=$(tsan_reports "$log")
 if [ "$status" -ne 0 ] || [ "$reports" -ne 0 ]; then

@@ -1,41 +1,60 @@
 #!/usr/bin/env bash
-# The install space works on its own: `catkin_make install` into a temporary workspace, build/ and devel/
-# removed, then only install/setup.bash sourced (in an environment without this repository's workspace):
-# roslaunch aloam_nodelet aloam.launch (with crop_box:=true, so the installed config and pcl_ros's
-# CropBox are used too) must answer the sweeps of a bag written by the installed aloam_sim and played
-# with rosbag play, and the installed Python tool must run.
-# Usage: check_install_space.sh OUT_DIR   (ALOAM_INSTALL_REUSE=1: keep an install space built there before)
+# The install space works on its own: `catkin_make install` of the built workspace (nothing is compiled
+# again: test.sh has built it), then only install/setup.bash sourced, in an environment without the
+# workspace's devel space: roslaunch aloam_nodelet aloam.launch (with crop_box:=true, so the installed
+# config and pcl_ros's CropBox are used too) must answer the sweeps of a bag written by the installed
+# aloam_sim and played with rosbag play, and the installed Python tool must run. No installed file may
+# name the build or devel space or the source tree (compiled Python caches aside: they only record the
+# file they were compiled from), and the package must also configure with testing off.
+# Usage: check_install_space.sh OUT_DIR   (ALOAM_WS: the built workspace; default .catkin_ws)
 set -euo pipefail
 root="$(cd "$(dirname "$0")/../.." && pwd)"
+ws="${ALOAM_WS:-$root/.catkin_ws}"
 out="$1"
+install="$ws/install"
 clean_env=(env -i HOME="$HOME" PATH=/usr/bin:/bin:/usr/sbin:/sbin LANG=C.UTF-8 ROS_HOME="$out/ros_home")
-if [ "${ALOAM_INSTALL_REUSE:-0}" != 1 ] || [ ! -e "$out/ws/install/setup.bash" ]; then
-  rm -rf "$out"
-  mkdir -p "$out/ws/src"
-  ln -s "$root" "$out/ws/src/aloam_nodelet"
-  echo "install space: catkin_make install in $out/ws (log: $out/install_build.log)"
-  if ! "${clean_env[@]}" bash -c "cd '$out/ws' && catkin_make install -DCMAKE_BUILD_TYPE=Release \
-        -DCATKIN_ENABLE_TESTING=OFF -j$(nproc)" >"$out/install_build.log" 2>&1; then
-    tail -30 "$out/install_build.log"
-    echo "FAIL: catkin_make install"
-    exit 1
-  fi
-  rm -rf "$out/ws/build" "$out/ws/devel"
+[ -f "$ws/build/CMakeCache.txt" ] || { echo "FAIL: no built workspace in $ws (run scripts/build.sh first)"; exit 1; }
+rm -rf "$out" "$install"
+mkdir -p "$out/testing_off"
+# The README's install line turns testing off: the package must configure that way too (in a build tree of
+# its own, so the workspace is left as it is).
+if ! "${clean_env[@]}" bash -c "cd '$out/testing_off' && cmake '$ws/src' -DCATKIN_ENABLE_TESTING=OFF \
+      -DCATKIN_DEVEL_PREFIX='$out/testing_off/devel' -DCMAKE_INSTALL_PREFIX='$out/testing_off/install'" \
+      >"$out/testing_off.log" 2>&1; then
+  tail -30 "$out/testing_off.log"
+  echo "FAIL: the package does not configure with CATKIN_ENABLE_TESTING=OFF"
+  exit 1
+fi
+echo "install space: catkin_make install in $ws (log: $out/install_build.log)"
+if ! "${clean_env[@]}" bash -c "cd '$ws' && catkin_make install -j$(nproc)" >"$out/install_build.log" 2>&1; then
+  tail -30 "$out/install_build.log"
+  echo "FAIL: catkin_make install"
+  exit 1
+fi
+# Every path into the repository, the build or the devel space that an installed file names (the install
+# space's own paths aside).
+path="[^\"' ;:]*"
+leaks=$(grep -rIo --exclude-dir=__pycache__ -e "$root/$path" -e "$ws/devel$path" -e "$ws/build$path" "$install" |
+  grep -v ":$install" || true)
+if [ -n "$leaks" ]; then
+  echo "$leaks" | head -20
+  echo "FAIL: these installed files name the build or devel space or the source tree"
+  exit 1
 fi
 for f in share/aloam_nodelet/launch/aloam.launch share/aloam_nodelet/launch/crop_box.launch \
          share/aloam_nodelet/config/HDL64.yaml share/aloam_nodelet/config/crop_box.yaml \
          share/aloam_nodelet/cfg/LaserMapping.cfg share/aloam_nodelet/rviz/aloam.rviz \
          share/aloam_nodelet/nodelet_plugins.xml lib/aloam_nodelet/aloam_sim lib/aloam_nodelet/demo_report.py; do
-  [ -e "$out/ws/install/$f" ] || { echo "FAIL: install/$f is missing"; exit 1; }
+  [ -e "$install/$f" ] || { echo "FAIL: install/$f is missing"; exit 1; }
 done
 
 port=$(/usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 cat >"$out/run.sh" <<RUN
 set -eo pipefail
-source "$out/ws/install/setup.bash"
+source "$install/setup.bash"
 export ROS_MASTER_URI=http://127.0.0.1:$port ROS_HOSTNAME=127.0.0.1
 cd "$out"
-[ "\$(rospack find aloam_nodelet)" = "$out/ws/install/share/aloam_nodelet" ] || { echo "FAIL: rospack finds \$(rospack find aloam_nodelet)"; exit 1; }
+[ "\$(rospack find aloam_nodelet)" = "$install/share/aloam_nodelet" ] || { echo "FAIL: rospack finds \$(rospack find aloam_nodelet)"; exit 1; }
 rosrun aloam_nodelet demo_report.py --help >/dev/null
 rosrun aloam_nodelet aloam_sim --sensor VLP16 --scene urban --trajectory car --duration 4 --seed 2 --bag sim.bag >sim.log 2>&1
 # roslaunch starts the master of ROS_MASTER_URI itself.
@@ -43,12 +62,18 @@ roslaunch aloam_nodelet aloam.launch rviz:=false crop_box:=true >pipeline.log 2>
 launch=\$!
 echo=
 trap 'kill -INT \$launch \$echo 2>/dev/null; wait' EXIT
+# Up when mapping offers its services and the manager (where scan registration runs) takes the cropped cloud.
+ready=false
 for i in \$(seq 90); do
   kill -0 \$launch || { echo "FAIL: roslaunch exited"; exit 1; }
-  rosservice list 2>/dev/null | grep -q '^/laser_mapping/save_trajectory\$' && \
-    rostopic info /velodyne_points_cropped 2>/dev/null | grep -q '/scan_registration' && break
+  if rosservice list 2>/dev/null | grep -q '^/laser_mapping/save_trajectory\$' &&
+     rostopic info /velodyne_points_cropped 2>/dev/null | sed -n '/^Subscribers:/,\$p' | grep -q '/aloam_manager'; then
+    ready=true
+    break
+  fi
   sleep 1
 done
+\$ready || { echo "FAIL: aloam.launch was not up after 90 tries"; exit 1; }
 rostopic echo -p /aft_mapped_to_init/header/stamp >answers.csv 2>/dev/null &
 echo=\$!
 sleep 2
