@@ -59,7 +59,7 @@ sanitize_run_sharded() {
   seq 0 $((shards - 1)) |
     xargs -P "$(nproc)" -I '{}' env GTEST_TOTAL_SHARDS=$shards GTEST_SHARD_INDEX='{}' \
       bash -c '"$@" >"$0.{}" 2>&1 || exit 1' "$log" "$@" || status=1
-  for ((i = 0; i < shards; i++)); do cat "$log.$i"; done >"$log"
+  for i in $(seq 0 $((shards - 1))); do cat "$log.$i"; done >"$log"
   rm -f "$log".*
   return "$status"
 }
