@@ -26,7 +26,9 @@ if ! "${clean_env[@]}" bash -c "cd '$out/testing_off' && cmake '$ws/src' -DCATKI
   exit 1
 fi
 echo "install space: catkin_make install in $ws (log: $out/install_build.log)"
-if ! "${clean_env[@]}" bash -c "cd '$ws' && catkin_make install -j$(nproc)" >"$out/install_build.log" 2>&1; then
+# Configured again in the clean environment: configured with its own devel space sourced (as `catkin_make
+# run_tests` is in test.sh), catkin chains that devel space into the install space's setup.
+if ! "${clean_env[@]}" bash -c "cd '$ws' && catkin_make install --force-cmake -j$(nproc)" >"$out/install_build.log" 2>&1; then
   tail -30 "$out/install_build.log"
   echo "FAIL: catkin_make install"
   exit 1
