@@ -49,8 +49,9 @@ tsan_gtest_filter() {
 }
 
 # sanitize_run_sharded LOG COMMAND...: runs a gtest binary as 4 shards per core, one per core at a time
-# (gtest's GTEST_TOTAL_SHARDS and GTEST_SHARD_INDEX: each test runs in exactly one shard; a sanitized test
-# keeps little more than one core busy, and small shards keep the cores busy while one long test runs).
+# (gtest's GTEST_TOTAL_SHARDS and GTEST_SHARD_INDEX: each test runs in exactly one shard). It helps where a
+# sanitized test keeps about one core busy (ASan); ThreadSanitizer's tests already keep ~1.4 busy and gain
+# little from it (docs/development.md).
 # LOG then holds every shard's output. Returns 0 only if every shard exited 0.
 sanitize_run_sharded() {
   local log="$1" shards i status=0
