@@ -2,10 +2,11 @@
 # Builds the fuzzers with clang (libFuzzer, AddressSanitizer, UBSan) and runs each for a share of the
 # given time: the PointCloud2 reader, and the stage messages as they arrive from another process
 # (deserialized, validated, handed to the core stages; needs the generated message headers of a built
-# workspace, else that fuzzer is skipped). Usage: run_fuzz.sh OUT_DIR [SECONDS]. Exit 0: no crash;
-# 77: skipped (no clang); 1: failed.
+# workspace, else that fuzzer is skipped). Usage: run_fuzz.sh OUT_DIR [SECONDS | --build-only].
+# Exit 0: no crash (with --build-only: built); 77: skipped (no clang); 1: failed.
 set -euo pipefail
-out="$1" seconds="${2:-60}"
+out="$1" seconds="${2:-60}" build_only=false
+if [ "$seconds" = --build-only ]; then build_only=true seconds=60; fi
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 ws="${ALOAM_WS:-$root/.catkin_ws}"
 if ! command -v clang++ >/dev/null; then
@@ -24,14 +25,26 @@ reader_seconds=$seconds
 $stage_messages && reader_seconds=$(((seconds + 2) / 3))
 stage_seconds=$((seconds - reader_seconds))
 
-# fuzz_target NAME WHAT SECONDS RSS_MB PREFIX INPUTS...: builds OUT_DIR/NAME from test/fuzz/NAME.cpp and
-# INPUTS (more sources, objects, libraries) and runs it for SECONDS on its corpus OUT_DIR/PREFIXcorpus;
-# a crashing input is saved as OUT_DIR/PREFIXcrash-*. Exits the script with 1 if it finds one.
-fuzz_target() {
+# build_target NAME INPUTS...: links OUT_DIR/NAME from test/fuzz/NAME.cpp and INPUTS (more sources,
+# objects, libraries) unless it is newer than its sources, objects and every header (test.sh builds first
+# in the background, then runs this check).
+build_target() {
+  local name="$1" input stale=false
+  shift
+  [ -f "$out/$name" ] || stale=true
+  for input in "$root/test/fuzz/$name.cpp" "$@"; do
+    if [ -f "$input" ] && [ "$input" -nt "$out/$name" ]; then stale=true; fi
+  done
+  if ! $stale && [ -n "$(find "$root/include" -name '*.h' -newer "$out/$name" | head -n 1)" ]; then stale=true; fi
+  if $stale; then clang++ "${flags[@]}" "$root/test/fuzz/$name.cpp" "$@" -o "$out/$name"; fi
+}
+
+# run_target NAME WHAT SECONDS RSS_MB PREFIX: runs OUT_DIR/NAME for SECONDS on its corpus
+# OUT_DIR/PREFIXcorpus; a crashing input is saved as OUT_DIR/PREFIXcrash-*. Exits the script with 1 if it
+# finds one.
+run_target() {
   local name="$1" what="$2" seconds="$3" rss_mb="$4" prefix="$5" status=0
-  shift 5
   mkdir -p "$out/${prefix}corpus"
-  clang++ "${flags[@]}" "$root/test/fuzz/$name.cpp" "$@" -o "$out/$name"
   # -rss_limit_mb: a bigger footprint than the target's cap is a bug too.
   "$out/$name" "$out/${prefix}corpus" -max_total_time="$seconds" -rss_limit_mb="$rss_mb" -print_final_stats=1 \
     -artifact_prefix="$out/$prefix" 2>&1 | tail -n 12 || status=$?
@@ -43,25 +56,26 @@ fuzz_target() {
   echo "PASSED fuzzing $what for ${seconds} s"
 }
 
+# Targets and objects are kept in OUT_DIR and rebuilt when a source or any header is newer, or when the
+# flags changed (the first build takes minutes).
+mkdir -p "$out/stage_obj"
+if [ "$(cat "$out/stage_obj/.flags" 2>/dev/null)" != "${object_flags[*]}" ]; then
+  rm -f "$out"/stage_obj/*.o "$out/fuzz_pointcloud2_reader" "$out/fuzz_stage_messages"
+  printf '%s' "${object_flags[*]}" >"$out/stage_obj/.flags"
+fi
+
 # The reader caps enormous clouds (1 GB is far above what it may keep). It may decode on an executor's
 # threads (not with these small inputs, but it links the executor).
-fuzz_target fuzz_pointcloud2_reader "the PointCloud2 reader" "$reader_seconds" 1024 "" \
-  "$root/src/ros/pointcloud2_reader.cpp" "$root/src/core/executor.cpp" -pthread
+build_target fuzz_pointcloud2_reader "$root/src/ros/pointcloud2_reader.cpp" "$root/src/core/executor.cpp" -pthread
+$build_only || run_target fuzz_pointcloud2_reader "the PointCloud2 reader" "$reader_seconds" 1024 ""
 
 if ! $stage_messages; then
   echo "SKIPPED fuzzing the stage messages: no generated messages in $ws/devel/include (build first)"
   exit 0
 fi
 # The core stages and the message conversions, instrumented too (two at a time: the machine is shared).
-mkdir -p "$out/stage_obj"
 sources=("$root"/src/core/*.cpp "$root/src/ros/stage_messages.cpp" "$root/src/ros/conversions.cpp"
   "$root/src/ros/pointcloud2_reader.cpp")
-# Objects are kept in OUT_DIR and rebuilt when a source or any header is newer, or the flags changed (the
-# first build takes minutes).
-if [ "$(cat "$out/stage_obj/.flags" 2>/dev/null)" != "${object_flags[*]}" ]; then
-  rm -f "$out"/stage_obj/*.o
-  printf '%s' "${object_flags[*]}" >"$out/stage_obj/.flags"
-fi
 objects=() stale=()
 for src in "${sources[@]}"; do
   obj="$out/stage_obj/$(basename "$src" .cpp).o"
@@ -75,5 +89,6 @@ done
   'clang++ "${@:1:$#-1}" -c "${*: -1}" -o "$0/$(basename "${*: -1}" .cpp).o"' "$out/stage_obj" \
   "${object_flags[@]}" -isystem "$ws/devel/include"
 # Only the objects of today's sources are linked (an old object of a removed source may still be there).
-fuzz_target fuzz_stage_messages "the stage messages" "$stage_seconds" 2048 stage_ -isystem "$ws/devel/include" \
-  "${objects[@]}" -lceres -lglog -lpcl_io -lpcl_common -lroscpp_serialization -lrostime -lcpp_common -lpthread
+build_target fuzz_stage_messages -isystem "$ws/devel/include" "${objects[@]}" \
+  -lceres -lglog -lpcl_io -lpcl_common -lroscpp_serialization -lrostime -lcpp_common -lpthread
+$build_only || run_target fuzz_stage_messages "the stage messages" "$stage_seconds" 2048 stage_

@@ -3,8 +3,8 @@
 # -fsanitize=thread in a workspace of its own (only the nodelet library, the libraries it needs and the host
 # tsan_nodelet_pipeline.cpp), starts a ROS master on a free port, runs the host (a played drive with
 # reconfigure and service calls during it, then unloading with sweeps in flight) and stops the master.
-# Usage: run_tsan_nodelet_pipeline.sh OUT_DIR [SWEEPS]. Exit 0: the host's checks passed and ThreadSanitizer
-# reported nothing; 1: otherwise.
+# Usage: run_tsan_nodelet_pipeline.sh OUT_DIR [SWEEPS | --build-only]. Exit 0: the host's checks passed and
+# ThreadSanitizer reported nothing (with --build-only: it built); 1: otherwise.
 set -euo pipefail
 out="$(mkdir -p "$1" && cd "$1" && pwd)"
 sweeps="${2:-40}"
@@ -33,21 +33,12 @@ flags="-fsanitize=thread -fno-omit-frame-pointer -g1 -O1 -fvisibility-inlines-hi
   { tail -n 40 "$out/build.log"; echo "FAILED building the nodelets with ThreadSanitizer (see $out/build.log)"; exit 1; }
 echo "built the nodelets and the host with ThreadSanitizer in $((SECONDS - start)) s"
 host="$ws/devel/lib/aloam_nodelet/tsan_nodelet_pipeline"
+[ "$sweeps" != --build-only ] || exit 0
 
-# A master of our own on a free port (other engineers' and CI's tests run masters too).
-port=$(/usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
-export_env=("${clean_env[@]}" "ROS_MASTER_URI=http://127.0.0.1:$port" "ROS_IP=127.0.0.1")
-"${export_env[@]}" rosmaster --core -p "$port" >"$out/rosmaster.log" 2>&1 &
-master=$!
-trap 'kill "$master" 2>/dev/null || true; wait "$master" 2>/dev/null || true' EXIT
-for _ in $(seq 1 300); do
-  if /usr/bin/python3 -c "import xmlrpc.client as x; x.ServerProxy('http://127.0.0.1:$port').getPid('/check')" \
-    >/dev/null 2>&1; then
-    break
-  fi
-  kill -0 "$master" 2>/dev/null || { cat "$out/rosmaster.log"; echo "FAILED: rosmaster did not start"; exit 1; }
-  sleep 0.2
-done
+source "$root/test/tools/ros_master.sh"
+start_ros_master "$out/rosmaster.log" "${clean_env[@]}" || exit 1
+trap stop_ros_master EXIT
+export_env=("${clean_env[@]}" "ROS_MASTER_URI=http://127.0.0.1:$ROS_MASTER_PORT" "ROS_IP=127.0.0.1")
 
 log="$out/host.log"
 start=$SECONDS

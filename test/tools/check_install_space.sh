@@ -50,7 +50,11 @@ for f in share/aloam_nodelet/launch/aloam.launch share/aloam_nodelet/launch/crop
   [ -e "$install/$f" ] || { echo "FAIL: install/$f is missing"; exit 1; }
 done
 
-port=$(/usr/bin/python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
+# The master is started here, not by roslaunch: roslaunch gives a master it starts 10 s to answer.
+source "$root/test/tools/ros_master.sh"
+start_ros_master "$out/rosmaster.log" "${clean_env[@]}" || exit 1
+trap stop_ros_master EXIT
+port=$ROS_MASTER_PORT
 cat >"$out/run.sh" <<RUN
 set -eo pipefail
 source "$install/setup.bash"
@@ -59,7 +63,6 @@ cd "$out"
 [ "\$(rospack find aloam_nodelet)" = "$install/share/aloam_nodelet" ] || { echo "FAIL: rospack finds \$(rospack find aloam_nodelet)"; exit 1; }
 rosrun aloam_nodelet demo_report.py --help >/dev/null
 rosrun aloam_nodelet aloam_sim --sensor VLP16 --scene urban --trajectory car --duration 4 --seed 2 --bag sim.bag >sim.log 2>&1
-# roslaunch starts the master of ROS_MASTER_URI itself.
 roslaunch aloam_nodelet aloam.launch rviz:=false crop_box:=true >pipeline.log 2>&1 &
 launch=\$!
 echo=
@@ -67,7 +70,7 @@ trap 'kill -INT \$launch \$echo 2>/dev/null; wait' EXIT
 # Up when mapping offers its services and the manager (where scan registration runs) takes the cropped cloud.
 ready=false
 for i in \$(seq 90); do
-  kill -0 \$launch || { echo "FAIL: roslaunch exited"; exit 1; }
+  kill -0 \$launch 2>/dev/null || { tail -n 30 pipeline.log; echo "FAIL: roslaunch exited"; exit 1; }
   if rosservice list 2>/dev/null | grep -q '^/laser_mapping/save_trajectory\$' &&
      rostopic info /velodyne_points_cropped 2>/dev/null | sed -n '/^Subscribers:/,\$p' | grep -q '/aloam_manager'; then
     ready=true
