@@ -101,7 +101,7 @@ TEST(CubeMapTest, InvalidCubeSizeThrows)
 {
   EXPECT_THROW(CubeMap(0.0), std::invalid_argument);
   EXPECT_THROW(CubeMap(-5.0), std::invalid_argument);
-  EXPECT_THROW(CubeMap(std::numeric_limits<double>::quiet_NaN()), std::invalid_argument);
+  EXPECT_THROW(CubeMap{ std::numeric_limits<double>::quiet_NaN() }, std::invalid_argument);
   CubeMap map(kCube);
   EXPECT_THROW(map.setCubeSize(0.0), std::invalid_argument);
   EXPECT_THROW(map.setCubeSize(std::numeric_limits<double>::infinity()), std::invalid_argument);

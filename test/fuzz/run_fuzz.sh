@@ -13,11 +13,14 @@ if ! command -v clang++ >/dev/null; then
   echo "SKIPPED fuzzing: clang++ not installed"
   exit 77
 fi
-# The fuzz targets take libFuzzer's main; the objects they link (stage messages) are instrumented for it
-# too (fuzzer-no-link: coverage without a second main), so the fuzzer is guided inside the stages.
-object_flags=(-std=c++17 -g1 -O1 -fsanitize=address,undefined,fuzzer-no-link -fno-sanitize-recover=undefined
-  -I "$root/include" -isystem /usr/include/eigen3 -isystem /usr/include/pcl-1.13)
-flags=("${object_flags[@]}" -fsanitize=fuzzer)
+source "$root/test/sanitize/sanitize_common.sh"
+# The targets take libFuzzer's main; the objects they link (the core, the stage messages) are instrumented
+# for it too (fuzzer-no-link: coverage without a second main), so the fuzzer is guided inside the stages.
+# (That coverage slows the code several times over, so the sanitized core tests build a core of their own:
+# docs/development.md.)
+asan=(clang++ -std=c++17 -O1 -g1 -fno-omit-frame-pointer -fsanitize=address,undefined,fuzzer-no-link
+  -fno-sanitize-recover=undefined -I "$root/include" -isystem /usr/include/eigen3 -isystem /usr/include/pcl-1.13)
+ros_flags=("${asan[@]}" -isystem "$ws/devel/include")
 stage_messages=false
 [ -f "$ws/devel/include/aloam_nodelet/FeatureClouds.h" ] && stage_messages=true
 # The reader is the smaller target: a third of the time, the stage messages the rest.
@@ -25,18 +28,17 @@ reader_seconds=$seconds
 $stage_messages && reader_seconds=$(((seconds + 2) / 3))
 stage_seconds=$((seconds - reader_seconds))
 
-# build_target NAME INPUTS...: links OUT_DIR/NAME from test/fuzz/NAME.cpp and INPUTS (more sources,
-# objects, libraries) unless it is newer than its sources, objects and every header (test.sh builds first
-# in the background, then runs this check).
+# build_target NAME OBJECTS... -- LIBRARIES...: links OUT_DIR/NAME from test/fuzz/NAME.cpp and OBJECTS
+# unless it is newer than all of them and every header (test.sh builds first in the background, then runs
+# this check).
 build_target() {
-  local name="$1" input stale=false
+  local name="$1" objects=()
   shift
-  [ -f "$out/$name" ] || stale=true
-  for input in "$root/test/fuzz/$name.cpp" "$@"; do
-    if [ -f "$input" ] && [ "$input" -nt "$out/$name" ]; then stale=true; fi
-  done
-  if ! $stale && [ -n "$(find "$root/include" -name '*.h' -newer "$out/$name" | head -n 1)" ]; then stale=true; fi
-  if $stale; then clang++ "${flags[@]}" "$root/test/fuzz/$name.cpp" "$@" -o "$out/$name"; fi
+  while [ "$1" != -- ]; do objects+=("$1"); shift; done
+  shift
+  if sanitize_stale "$root" "$out/$name" "$root/test/fuzz/$name.cpp" "${objects[@]}"; then
+    "${ros_flags[@]}" -fsanitize=fuzzer "$root/test/fuzz/$name.cpp" "${objects[@]}" "$@" -o "$out/$name"
+  fi
 }
 
 # run_target NAME WHAT SECONDS RSS_MB PREFIX: runs OUT_DIR/NAME for SECONDS on its corpus
@@ -56,39 +58,28 @@ run_target() {
   echo "PASSED fuzzing $what for ${seconds} s"
 }
 
-# Targets and objects are kept in OUT_DIR and rebuilt when a source or any header is newer, or when the
-# flags changed (the first build takes minutes).
-mkdir -p "$out/stage_obj"
-if [ "$(cat "$out/stage_obj/.flags" 2>/dev/null)" != "${object_flags[*]}" ]; then
-  rm -f "$out"/stage_obj/*.o "$out/fuzz_pointcloud2_reader" "$out/fuzz_stage_messages"
-  printf '%s' "${object_flags[*]}" >"$out/stage_obj/.flags"
-fi
+mkdir -p "$out"
+core_dir="$out/core"
+mapfile -t core < <(sanitize_core_sources "$root" core)
+ros=("$root/src/ros/pointcloud2_reader.cpp")
+$stage_messages && ros+=("$root/src/ros/stage_messages.cpp" "$root/src/ros/conversions.cpp")
+sanitize_compile "$root" "$core_dir" "${asan[@]}" -- "${core[@]}"
+sanitize_compile "$root" "$out/stage_obj" "${ros_flags[@]}" -- "${ros[@]}"
+core_objects=() ros_objects=()
+for src in "${core[@]}"; do core_objects+=("$(sanitize_object "$core_dir" "$root" "$src")"); done
+for src in "${ros[@]}"; do ros_objects+=("$(sanitize_object "$out/stage_obj" "$root" "$src")"); done
 
 # The reader caps enormous clouds (1 GB is far above what it may keep). It may decode on an executor's
 # threads (not with these small inputs, but it links the executor).
-build_target fuzz_pointcloud2_reader "$root/src/ros/pointcloud2_reader.cpp" "$root/src/core/executor.cpp" -pthread
+build_target fuzz_pointcloud2_reader "${ros_objects[0]}" "$(sanitize_object "$core_dir" "$root" "$root/src/core/executor.cpp")" \
+  -- -pthread
 $build_only || run_target fuzz_pointcloud2_reader "the PointCloud2 reader" "$reader_seconds" 1024 ""
 
 if ! $stage_messages; then
   echo "SKIPPED fuzzing the stage messages: no generated messages in $ws/devel/include (build first)"
   exit 0
 fi
-# The core stages and the message conversions, instrumented too (two at a time: the machine is shared).
-sources=("$root"/src/core/*.cpp "$root/src/ros/stage_messages.cpp" "$root/src/ros/conversions.cpp"
-  "$root/src/ros/pointcloud2_reader.cpp")
-objects=() stale=()
-for src in "${sources[@]}"; do
-  obj="$out/stage_obj/$(basename "$src" .cpp).o"
-  objects+=("$obj")
-  if [ ! -f "$obj" ] || [ "$src" -nt "$obj" ] || [ -n "$(find "$root/include" -newer "$obj" -name '*.h' | head -n 1)" ]; then
-    stale+=("$src")
-  fi
-done
-# xargs hands each job one stale source after the flags ($0: the object folder).
-[ ${#stale[@]} -eq 0 ] || printf '%s\n' "${stale[@]}" | xargs -d '\n' -n 1 -P 2 bash -c \
-  'clang++ "${@:1:$#-1}" -c "${*: -1}" -o "$0/$(basename "${*: -1}" .cpp).o"' "$out/stage_obj" \
-  "${object_flags[@]}" -isystem "$ws/devel/include"
-# Only the objects of today's sources are linked (an old object of a removed source may still be there).
-build_target fuzz_stage_messages -isystem "$ws/devel/include" "${objects[@]}" \
-  -lceres -lglog -lpcl_io -lpcl_common -lroscpp_serialization -lrostime -lcpp_common -lpthread
+# The core stages and the message conversions, deserialized as they arrive from another process.
+build_target fuzz_stage_messages "${core_objects[@]}" "${ros_objects[@]}" \
+  -- -lceres -lglog -lpcl_io -lpcl_common -lroscpp_serialization -lrostime -lcpp_common -lpthread
 $build_only || run_target fuzz_stage_messages "the stage messages" "$stage_seconds" 2048 stage_

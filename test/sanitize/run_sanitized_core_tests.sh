@@ -1,14 +1,16 @@
 #!/usr/bin/env bash
 # Builds the ROS-free core and its gtest suite with AddressSanitizer and UndefinedBehaviorSanitizer
-# (outside catkin: the core needs no ROS) and runs it. Usage: run_sanitized_core_tests.sh OUT_DIR [--build-only].
+# (outside catkin: the core needs no ROS) and runs it.
+# Usage: run_sanitized_core_tests.sh OUT_DIR [--build-only].
 # Exit 0: passed (with --build-only: built); non-zero: it did not build, a test failed or a sanitizer reported.
 # The build (and which tests are in it) is shared with run_tsan_core_tests.sh: sanitize_common.sh.
 set -euo pipefail
 out="$1"
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 source "$root/test/sanitize/sanitize_common.sh"
-sanitize_build_core_tests "$root" "$out" test_core_sanitized -fsanitize=address,undefined \
-  -fno-sanitize-recover=undefined || exit 1
+sanitize_build_core_tests "$root" "$out" test_core_sanitized tests g++ -std=c++17 -O1 -g1 -fno-omit-frame-pointer \
+  -fsanitize=address,undefined -fno-sanitize-recover=undefined -I "$root/include" -isystem /usr/include/eigen3 \
+  -isystem /usr/include/pcl-1.13 || exit 1
 [ "${2:-}" != --build-only ] || exit 0
 log="$out/test_core_sanitized.log"
 start=$SECONDS

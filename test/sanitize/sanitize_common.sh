@@ -83,57 +83,84 @@ sanitize_run_sharded() {
   return "$status"
 }
 
-# sanitize_core_sources ROOT [thread]: the sources, one a line; with `thread`, without the test files that
-# only hold suites ThreadSanitizer leaves out.
+# sanitize_core_sources ROOT SET: sources, one a line. SET: `core` (the core library alone, which the
+# fuzzers link too), `tests` (the simulator, the metrics and the test files of the sanitized core tests),
+# `tsan_tests` (those without the test files that only hold suites ThreadSanitizer leaves out).
 sanitize_core_sources() {
-  local root="$1" threads="${2:-}" src name
+  local root="$1" set="$2" src name
   shopt -s nullglob
-  printf '%s\n' "$root"/src/core/*.cpp "$root"/src/sim/*.cpp "$root"/src/eval/*.cpp
+  if [ "$set" = core ]; then
+    printf '%s\n' "$root"/src/core/*.cpp
+    return
+  fi
+  printf '%s\n' "$root"/src/sim/*.cpp "$root"/src/eval/*.cpp
   for src in "$root"/test/core/test_*.cpp; do
     name="$(basename "$src")"
     [[ "$name" == test_kitti_accuracy.cpp || "$name" == test_param_defaults.cpp ]] && continue
-    [ "$threads" = thread ] && only_threadless_suites "$src" && continue
+    [ "$set" = tsan_tests ] && only_threadless_suites "$src" && continue
     echo "$src"
   done
 }
 
-# sanitize_build_core_tests ROOT OUT_DIR EXE SANITIZER_FLAGS...: compiles the core and its tests with the
-# given sanitizer flags into OUT_DIR/obj and links OUT_DIR/EXE. Returns non-zero if anything fails to build.
-# Every step is checked here: callers may run it under `|| exit 1`, where `set -e` does not apply.
-sanitize_build_core_tests() {
-  local root="$1" out="$2" exe="$3"
-  shift 3
-  local flags=(-std=c++17 -O1 -g1 -fno-omit-frame-pointer "$@"
-               -I "$root/include" -I /usr/include/eigen3 -I /usr/include/pcl-1.13)
-  local sources=() objects=() src start=$SECONDS
-  local set=all
-  [[ " $* " != *" -fsanitize=thread "* ]] || set=thread
-  mapfile -t sources < <(sanitize_core_sources "$root" "$set")
-  # Objects are named after their source's path, so the two sanitizers' builds never share one.
-  for src in "${sources[@]}"; do objects+=("$out/obj/$(echo "$src" | tr / _).o"); done
-  mkdir -p "$out/obj" || return 1
-  # An object is reused only if neither its source nor any header changed since the last build.
-  if [ -f "$out/obj/.stamp" ] &&
-     [ -n "$(find "$root/include" "$root/src" "$root/test/core" -name '*.h' -newer "$out/obj/.stamp")" ]; then
-    rm -f "$out"/obj/*.o
-  fi
-  # Compile on every core: xargs hands each job a source and its object after the flags.
-  local i
-  for i in "${!sources[@]}"; do printf '%s\n%s\n' "${sources[i]}" "${objects[i]}"; done |
-    xargs -r -d '\n' -n 2 -P "$(nproc)" bash -c '
-      src="${*: -2:1}" obj="${*: -1}"
-      if [ ! -f "$obj" ] || [ "$src" -nt "$obj" ]; then g++ "${@:1:$#-2}" -c "$src" -o "$obj"; fi' _ "${flags[@]}" ||
-    { echo "FAILED compiling the core tests with $*"; return 1; }
-  touch "$out/obj/.stamp" || return 1
-  # Linked again only if an object is newer (test.sh builds first in the background, then runs the check),
-  # and only the objects of today's sources (an old object of a removed source may still be there).
-  local obj relink=false
-  for obj in "${objects[@]}"; do
-    if [ "$obj" -nt "$out/$exe" ]; then relink=true; fi
+# sanitize_stale ROOT OUT INPUTS...: true if OUT is missing or older than one of INPUTS or than any header of
+# the project. The one rule by which the sanitized and fuzz builds reuse what they built before.
+sanitize_stale() {
+  local root="$1" out="$2" input
+  shift 2
+  [ -e "$out" ] || return 0
+  for input in "$@"; do
+    if [ -e "$input" ] && [ "$input" -nt "$out" ]; then return 0; fi
   done
-  if $relink; then
-    g++ "${flags[@]}" "${objects[@]}" -lceres -lglog -lpcl_common -lpcl_io -lgtest -lgtest_main -pthread \
-      -o "$out/$exe" || { echo "FAILED linking the core tests with $*"; return 1; }
+  [ -n "$(find "$root/include" "$root/src" "$root/test" -name '*.h' -newer "$out" -print -quit)" ]
+}
+
+# sanitize_object OBJ_DIR ROOT SOURCE: the object of SOURCE, named after its path in the project.
+sanitize_object() { local rel="${3#"$2"/}"; echo "$1/${rel//\//_}.o"; }
+
+# sanitize_compile ROOT OBJ_DIR COMPILER FLAGS... -- SOURCES...: compiles the stale SOURCES into OBJ_DIR on
+# every core (sanitize_object names them). New flags or another compiler empty OBJ_DIR first. An object is
+# written under a temporary name and renamed, so a reader never links a half-written one. Returns non-zero
+# if a compile fails; every step is checked here (callers may run it under `||`, where `set -e` does not
+# apply).
+sanitize_compile() {
+  local root="$1" dir="$2" flags=() src obj stale=()
+  shift 2
+  while [ "$1" != -- ]; do flags+=("$1"); shift; done
+  shift
+  mkdir -p "$dir" || return 1
+  if [ "$(cat "$dir/.flags" 2>/dev/null)" != "${flags[*]}" ]; then
+    rm -f "$dir"/*.o
+    printf '%s' "${flags[*]}" >"$dir/.flags" || return 1
+  fi
+  for src in "$@"; do
+    obj="$(sanitize_object "$dir" "$root" "$src")"
+    if sanitize_stale "$root" "$obj" "$src"; then stale+=("$src" "$obj"); fi
+  done
+  [ ${#stale[@]} -gt 0 ] || return 0
+  # xargs hands each job a source and its object after the compiler and flags.
+  printf '%s\n' "${stale[@]}" | xargs -r -d '\n' -n 2 -P "$(nproc)" bash -c '
+    src="${*: -2:1}" obj="${*: -1}"
+    "${@:1:$#-2}" -c "$src" -o "$obj.tmp$$" && mv "$obj.tmp$$" "$obj"' _ "${flags[@]}" ||
+    { echo "FAILED compiling with ${flags[*]}"; return 1; }
+}
+
+# sanitize_build_core_tests ROOT OUT_DIR EXE SET COMPILER FLAGS...: compiles the core into OUT_DIR/core and
+# the SET of test sources (sanitize_core_sources) into OUT_DIR/obj, and links OUT_DIR/EXE if an object is
+# newer. Returns non-zero if anything fails to build.
+sanitize_build_core_tests() {
+  local root="$1" out="$2" exe="$3" set="$4"
+  shift 4
+  local start=$SECONDS core=() tests=() objects=() src
+  mapfile -t core < <(sanitize_core_sources "$root" core)
+  mapfile -t tests < <(sanitize_core_sources "$root" "$set")
+  sanitize_compile "$root" "$out/core" "$@" -- "${core[@]}" || return 1
+  sanitize_compile "$root" "$out/obj" "$@" -- "${tests[@]}" || return 1
+  # Only the objects of today's sources (an old object of a removed source may still be there).
+  for src in "${core[@]}"; do objects+=("$(sanitize_object "$out/core" "$root" "$src")"); done
+  for src in "${tests[@]}"; do objects+=("$(sanitize_object "$out/obj" "$root" "$src")"); done
+  if sanitize_stale "$root" "$out/$exe" "${objects[@]}"; then
+    "$@" "${objects[@]}" -lceres -lglog -lpcl_common -lpcl_io -lgtest -lgtest_main -pthread -o "$out/$exe" ||
+      { echo "FAILED linking the core tests with $*"; return 1; }
   fi
   echo "built the core tests with $* in $((SECONDS - start)) s"
 }

@@ -54,11 +54,10 @@ done
 source "$root/test/tools/ros_master.sh"
 start_ros_master "$out/rosmaster.log" "${clean_env[@]}" || exit 1
 trap stop_ros_master EXIT
-port=$ROS_MASTER_PORT
 cat >"$out/run.sh" <<RUN
 set -eo pipefail
 source "$install/setup.bash"
-export ROS_MASTER_URI=http://127.0.0.1:$port ROS_HOSTNAME=127.0.0.1
+export ROS_MASTER_URI=http://127.0.0.1:$ROS_MASTER_PORT ROS_HOSTNAME=127.0.0.1
 cd "$out"
 [ "\$(rospack find aloam_nodelet)" = "$install/share/aloam_nodelet" ] || { echo "FAIL: rospack finds \$(rospack find aloam_nodelet)"; exit 1; }
 rosrun aloam_nodelet demo_report.py --help >/dev/null
@@ -85,7 +84,7 @@ sleep 2
 rosbag play -q -d 1 --topics velodyne_points -- sim.bag
 sleep 3
 RUN
-echo "install space: sourcing only install/setup.bash, master on port $port"
+echo "install space: sourcing only install/setup.bash, master on port $ROS_MASTER_PORT"
 status=0
 "${clean_env[@]}" bash "$out/run.sh" || status=$?
 answers=$(awk 'NR > 1 && NF' "$out/answers.csv" 2>/dev/null | wc -l)
