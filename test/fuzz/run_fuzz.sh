@@ -34,8 +34,8 @@ stage_seconds=$((seconds - reader_seconds))
 build_target() {
   local name="$1" objects=()
   shift
-  while [ "$1" != -- ]; do objects+=("$1"); shift; done
-  shift
+  while [ $# -gt 0 ] && [ "$1" != -- ]; do objects+=("$1"); shift; done
+  [ $# -eq 0 ] || shift
   if sanitize_stale "$root" "$out/$name" "$root/test/fuzz/$name.cpp" "${objects[@]}"; then
     "${ros_flags[@]}" -fsanitize=fuzzer "$root/test/fuzz/$name.cpp" "${objects[@]}" "$@" -o "$out/$name"
   fi

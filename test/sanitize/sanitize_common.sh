@@ -125,7 +125,8 @@ sanitize_object() { local rel="${3#"$2"/}"; echo "$1/${rel//\//_}.o"; }
 sanitize_compile() {
   local root="$1" dir="$2" flags=() src obj stale=()
   shift 2
-  while [ "$1" != -- ]; do flags+=("$1"); shift; done
+  while [ $# -gt 0 ] && [ "$1" != -- ]; do flags+=("$1"); shift; done
+  [ $# -gt 0 ] || { echo "sanitize_compile: no -- before the sources"; return 1; }
   shift
   mkdir -p "$dir" || return 1
   if [ "$(cat "$dir/.flags" 2>/dev/null)" != "${flags[*]}" ]; then
