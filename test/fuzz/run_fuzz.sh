@@ -18,8 +18,8 @@ source "$root/test/sanitize/sanitize_common.sh"
 # for it too (fuzzer-no-link: coverage without a second main), so the fuzzer is guided inside the stages.
 # (That coverage slows the code several times over, so the sanitized core tests build a core of their own:
 # docs/development.md.)
-asan=(clang++ -std=c++17 -O1 -g1 -fno-omit-frame-pointer -fsanitize=address,undefined,fuzzer-no-link
-  -fno-sanitize-recover=undefined -I "$root/include" -isystem /usr/include/eigen3 -isystem /usr/include/pcl-1.13)
+mapfile -t asan < <(sanitize_command "$root" clang++ -fsanitize=address,undefined,fuzzer-no-link \
+  -fno-sanitize-recover=undefined)
 ros_flags=("${asan[@]}" -isystem "$ws/devel/include")
 stage_messages=false
 [ -f "$ws/devel/include/aloam_nodelet/FeatureClouds.h" ] && stage_messages=true
@@ -65,13 +65,12 @@ ros=("$root/src/ros/pointcloud2_reader.cpp")
 $stage_messages && ros+=("$root/src/ros/stage_messages.cpp" "$root/src/ros/conversions.cpp")
 sanitize_compile "$root" "$core_dir" "${asan[@]}" -- "${core[@]}"
 sanitize_compile "$root" "$out/stage_obj" "${ros_flags[@]}" -- "${ros[@]}"
-core_objects=() ros_objects=()
-for src in "${core[@]}"; do core_objects+=("$(sanitize_object "$core_dir" "$root" "$src")"); done
-for src in "${ros[@]}"; do ros_objects+=("$(sanitize_object "$out/stage_obj" "$root" "$src")"); done
+mapfile -t core_objects < <(sanitize_objects "$core_dir" "$root" "${core[@]}")
+mapfile -t ros_objects < <(sanitize_objects "$out/stage_obj" "$root" "${ros[@]}")
 
 # The reader caps enormous clouds (1 GB is far above what it may keep). It may decode on an executor's
 # threads (not with these small inputs, but it links the executor).
-build_target fuzz_pointcloud2_reader "${ros_objects[0]}" "$(sanitize_object "$core_dir" "$root" "$root/src/core/executor.cpp")" \
+build_target fuzz_pointcloud2_reader "${ros_objects[0]}" "$(sanitize_objects "$core_dir" "$root" "$root/src/core/executor.cpp")" \
   -- -pthread
 $build_only || run_target fuzz_pointcloud2_reader "the PointCloud2 reader" "$reader_seconds" 1024 ""
 

@@ -9,8 +9,8 @@ set -euo pipefail
 out="$1"
 root="$(cd "$(dirname "$0")/../.." && pwd)"
 source "$root/test/sanitize/sanitize_common.sh"
-sanitize_build_core_tests "$root" "$out" test_core_tsan tsan_tests g++ -std=c++17 -O1 -g1 -fno-omit-frame-pointer \
-  -fsanitize=thread -I "$root/include" -isystem /usr/include/eigen3 -isystem /usr/include/pcl-1.13 || exit 1
+mapfile -t command < <(sanitize_command "$root" g++ -fsanitize=thread)
+sanitize_build_core_tests "$root" "$out" test_core_tsan tsan_tests "${command[@]}" || exit 1
 [ "${2:-}" != --build-only ] || exit 0
 
 log="$out/test_core_tsan.log"

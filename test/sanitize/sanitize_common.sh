@@ -114,11 +114,25 @@ sanitize_stale() {
   [ -n "$(find "$root/include" "$root/src" "$root/test" -name '*.h' -newer "$out" -print -quit)" ]
 }
 
-# sanitize_object OBJ_DIR ROOT SOURCE: the object of SOURCE, named after its path in the project.
-sanitize_object() { local rel="${3#"$2"/}"; echo "$1/${rel//\//_}.o"; }
+# sanitize_command ROOT COMPILER SANITIZER_FLAGS...: the compile command of a sanitized build, one word a
+# line (mapfile -t): the optimisation, debug and include flags every such build shares around its own.
+sanitize_command() {
+  local root="$1" compiler="$2"
+  shift 2
+  printf '%s\n' "$compiler" -std=c++17 -O1 -g1 -fno-omit-frame-pointer "$@" -I "$root/include" \
+    -isystem /usr/include/eigen3 -isystem /usr/include/pcl-1.13
+}
+
+# sanitize_objects OBJ_DIR ROOT SOURCES...: the objects of SOURCES, one a line, named after their paths in
+# the project.
+sanitize_objects() {
+  local dir="$1" root="$2" src rel
+  shift 2
+  for src in "$@"; do rel="${src#"$root"/}"; echo "$dir/${rel//\//_}.o"; done
+}
 
 # sanitize_compile ROOT OBJ_DIR COMPILER FLAGS... -- SOURCES...: compiles the stale SOURCES into OBJ_DIR on
-# every core (sanitize_object names them). New flags or another compiler empty OBJ_DIR first. An object is
+# every core (sanitize_objects names them). New flags or another compiler empty OBJ_DIR first. An object is
 # written under a temporary name and renamed, so a reader never links a half-written one. Returns non-zero
 # if a compile fails; every step is checked here (callers may run it under `||`, where `set -e` does not
 # apply).
@@ -134,7 +148,7 @@ sanitize_compile() {
     printf '%s' "${flags[*]}" >"$dir/.flags" || return 1
   fi
   for src in "$@"; do
-    obj="$(sanitize_object "$dir" "$root" "$src")"
+    obj="$(sanitize_objects "$dir" "$root" "$src")"
     if sanitize_stale "$root" "$obj" "$src"; then stale+=("$src" "$obj"); fi
   done
   [ ${#stale[@]} -gt 0 ] || return 0
@@ -145,20 +159,19 @@ sanitize_compile() {
     { echo "FAILED compiling with ${flags[*]}"; return 1; }
 }
 
-# sanitize_build_core_tests ROOT OUT_DIR EXE SET COMPILER FLAGS...: compiles the core into OUT_DIR/core and
-# the SET of test sources (sanitize_core_sources) into OUT_DIR/obj, and links OUT_DIR/EXE if an object is
+# sanitize_build_core_tests ROOT OUT_DIR EXE SET COMMAND...: compiles the core into OUT_DIR/core and
+# the SET of test sources (sanitize_core_sources) into OUT_DIR/obj with COMMAND (sanitize_command), and links OUT_DIR/EXE if an object is
 # newer. Returns non-zero if anything fails to build.
 sanitize_build_core_tests() {
   local root="$1" out="$2" exe="$3" set="$4"
   shift 4
-  local start=$SECONDS core=() tests=() objects=() src
+  local start=$SECONDS core=() tests=() objects=()
   mapfile -t core < <(sanitize_core_sources "$root" core)
   mapfile -t tests < <(sanitize_core_sources "$root" "$set")
   sanitize_compile "$root" "$out/core" "$@" -- "${core[@]}" || return 1
   sanitize_compile "$root" "$out/obj" "$@" -- "${tests[@]}" || return 1
   # Only the objects of today's sources (an old object of a removed source may still be there).
-  for src in "${core[@]}"; do objects+=("$(sanitize_object "$out/core" "$root" "$src")"); done
-  for src in "${tests[@]}"; do objects+=("$(sanitize_object "$out/obj" "$root" "$src")"); done
+  mapfile -t objects < <(sanitize_objects "$out/core" "$root" "${core[@]}"; sanitize_objects "$out/obj" "$root" "${tests[@]}")
   if sanitize_stale "$root" "$out/$exe" "${objects[@]}"; then
     "$@" "${objects[@]}" -lceres -lglog -lpcl_common -lpcl_io -lgtest -lgtest_main -pthread -o "$out/$exe" ||
       { echo "FAILED linking the core tests with $*"; return 1; }
