@@ -80,6 +80,43 @@ Eigen::Vector3d acrossRings(const Point& p, const Pose& pose, const Eigen::Vecto
   // |along| < 1, so the part of the cone normal perpendicular to the line is not zero.
   return pose.q * (cone_normal - along * line).normalized();
 }
+
+// The leaf scale for a sweep whose plane points (sensor frame) lie at these ranges: a power of two near
+// median range / reference, within [min_scale, 1]. `current` holds until the wanted scale is more than
+// 0.65 of a power of two away from it (a margin of 0.15 past the midpoint).
+double sceneLeafScale(const Cloud& surfs, double reference_range, double min_scale, double current)
+{
+  constexpr std::size_t kMinPoints = 50;  // fewer: too few to judge the scene by
+  if (!(min_scale < 1.0) || !(reference_range > 0.0))
+  {
+    return 1.0;
+  }
+  std::vector<float> squared;
+  squared.reserve(surfs.size());
+  for (const Point& p : surfs.points)
+  {
+    const float r2 = p.x * p.x + p.y * p.y + p.z * p.z;
+    if (std::isfinite(r2))
+    {
+      squared.push_back(r2);
+    }
+  }
+  if (squared.size() < kMinPoints)
+  {
+    return current;
+  }
+  const auto middle = squared.begin() + static_cast<std::ptrdiff_t>(squared.size() / 2);
+  std::nth_element(squared.begin(), middle, squared.end());
+  const double finest = std::ceil(std::log2(min_scale) - 1e-9);
+  const double wanted =
+      std::log2(std::clamp(std::sqrt(static_cast<double>(*middle)) / reference_range, min_scale, 1.0));
+  const double level = std::log2(current);
+  if (std::abs(wanted - level) <= 0.65)
+  {
+    return current;
+  }
+  return std::exp2(std::clamp(std::round(wanted), finest, 0.0));
+}
 }  // namespace
 
 LaserMapping::LaserMapping(LaserMappingConfig config, std::shared_ptr<Executor> executor)
@@ -92,14 +129,26 @@ LaserMapping::LaserMapping(LaserMappingConfig config, std::shared_ptr<Executor> 
 void LaserMapping::setConfig(const LaserMappingConfig& config)
 {
   config_ = config;
+  if (!(config_.leaf_min_scale < 1.0) || leaf_scale_ < config_.leaf_min_scale)
+  {
+    leaf_scale_ = 1.0;
+  }
   submap_ready_ = false;
   map_.setCubeSize(config.cube_size);
-  map_.setLeafSizes(config.corner_leaf_size, config.surf_leaf_size);
+  map_.setLeafSizes(cornerLeaf(), surfLeaf());
+}
+
+void LaserMapping::adaptLeaves(const Cloud& surfs)
+{
+  leaf_scale_ = sceneLeafScale(surfs, config_.leaf_reference_range, config_.leaf_min_scale, leaf_scale_);
+  map_.setLeafSizes(cornerLeaf(), surfLeaf());  // re-indexes only when they changed
 }
 
 void LaserMapping::reset()
 {
   map_.clear();
+  leaf_scale_ = 1.0;
+  map_.setLeafSizes(cornerLeaf(), surfLeaf());
   submap_ready_ = false;
   pending_insert_ = false;
   held_first_.reset();
@@ -291,7 +340,7 @@ void LaserMapping::releaseHeldFirst(const OdometryFrame& frame)
     {
       deskewToSweepEnd(*in, within, sweep, deskewed);
     }
-    voxelDownsample(sweep > 0.0 ? deskewed : *in, is_corners ? config_.corner_leaf_size : config_.surf_leaf_size, out);
+    voxelDownsample(sweep > 0.0 ? deskewed : *in, is_corners ? cornerLeaf() : surfLeaf(), out);
   }
   first_pose_ = held.pose;
   pending_first_ = true;
@@ -319,6 +368,11 @@ MappingResult LaserMapping::registerFrame(const OdometryFrame& frame)
 {
   MappingResult result;
   result.stamp = frame.stamp;
+  if (!frozen_ && frame.surfs)
+  {
+    adaptLeaves(*frame.surfs);
+  }
+  result.leaf_scale = leaf_scale_;
   const Pose prediction = correction_ * frame.pose;
   Pose pose = prediction;
 
@@ -333,7 +387,7 @@ MappingResult LaserMapping::registerFrame(const OdometryFrame& frame)
                                 const auto& in = layer == 0 ? frame.corners : frame.surfs;
                                 if (in)
                                 {
-                                  voxelDownsample(*in, layer == 0 ? config_.corner_leaf_size : config_.surf_leaf_size,
+                                  voxelDownsample(*in, layer == 0 ? cornerLeaf() : surfLeaf(),
                                                   layer == 0 ? corner_stack_ : surf_stack_);
                                 }
                               }
@@ -467,7 +521,10 @@ CubeMap LaserMapping::buildMap(const std::vector<MapSweep>& sweeps, const LaserM
 
 void LaserMapping::rebuildMap(const std::vector<MapSweep>& sweeps, const Pose& change)
 {
-  replaceMap(buildMap(sweeps, config_), change);
+  LaserMappingConfig scaled = config_;
+  scaled.corner_leaf_size = cornerLeaf();
+  scaled.surf_leaf_size = surfLeaf();
+  replaceMap(buildMap(sweeps, scaled), change);
 }
 
 void LaserMapping::replaceMap(CubeMap map, const Pose& change)
@@ -495,7 +552,7 @@ void LaserMapping::loadMap(const Cloud& corners, const Cloud& surfs)
   map_.setLeafSizes(0.0, 0.0);
   map_.insertCorners(corners);
   map_.insertSurfs(surfs);
-  map_.setLeafSizes(config_.corner_leaf_size, config_.surf_leaf_size);
+  map_.setLeafSizes(cornerLeaf(), surfLeaf());
 }
 
 void LaserMapping::prepareSubmapAround(const Eigen::Vector3d& position)

@@ -404,6 +404,10 @@ void LaserMappingNodelet::report(diagnostic_updater::DiagnosticStatusWrapper& s)
   s.add("map edge points", stats.last.map_corners);
   s.add("map plane points", stats.last.map_surfs);
   s.add("map cubes", stats.last.cubes);
+  const aloam::LaserMappingConfig& mapping = session_->mappingConfig();
+  s.addf("leaves (edge / plane)", "%.2f / %.2f m (scale %g of the configured: %s)",
+         mapping.corner_leaf_size * stats.last.leaf_scale, mapping.surf_leaf_size * stats.last.leaf_scale,
+         stats.last.leaf_scale, stats.last.leaf_scale < 1.0 ? "confined scene" : "open scene");
   s.add("cubes evicted", stats.evicted_cubes);
   s.add("trajectory poses dropped (trajectory_max_poses)", stats.trajectory_dropped);
   s.add("loop closure keyframes", stats.loops.keyframes);
@@ -434,6 +438,8 @@ void LaserMappingNodelet::reconfigureCb(const LaserMappingConfig& c)
   config.cube_size = c.cube_size;
   config.corner_leaf_size = c.corner_leaf_size;
   config.surf_leaf_size = c.surf_leaf_size;
+  config.leaf_min_scale = c.leaf_min_scale;
+  config.leaf_reference_range = c.leaf_reference_range;
   config.max_iterations = c.max_iterations;
   config.outer_iterations = c.outer_iterations;
   config.plane_neighbours = c.plane_neighbours;

@@ -9,6 +9,7 @@
 #include <fstream>
 #include <iomanip>
 #include <iostream>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -84,12 +85,16 @@ constexpr const char* kUsage =
     "  --minimum-range M  drop returns closer than M metres (default: 5 for --kitti, 0.3 otherwise)\n"
     "  --kitti-vertical-correction DEG\n"
     "                     raise KITTI elevations by DEG (default 0.205, KITTI's known intrinsic error; 0: off)\n"
+    "  --corner-leaf M, --surf-leaf M\n"
+    "                     laser_mapping's corner_leaf_size and surf_leaf_size (default 0.4 and 0.8)\n"
+    "  --leaf-min-scale S laser_mapping's leaf_min_scale: leaves shrink in confined scenes down to S times\n"
+    "                     the configured ones (default 0.25; 1: fixed leaves)\n"
     "  --max-frames N     stop after N frames\n"
     "  --keep-every N     use only every Nth sweep (0, N, 2N, ...) with its real stamp, as behind a throttle\n"
     "  --baseline         the handling of degeneracy and time of commit 81f6493 (A-LOAM-like): a weak direction\n"
     "                     keeps the whole prediction, and the last motion is the prediction and the deskew\n"
     "                     motion whatever the time between stamps, and odometry's ring neighbourhood counts\n"
-    "                     rings (nearby_scan) instead of degrees\n"
+    "                     rings (nearby_scan) instead of degrees, and mapping's leaves stay as configured\n"
     "  --nearby-elevation-deg DEG\n"
     "                     odometry's ring neighbourhood in degrees of elevation (0: nearby_scan rings)\n"
     "  --reject-occluded on|off\n"
@@ -128,7 +133,7 @@ struct Options
   std::optional<double> occlusion_continuity, occlusion_straight;
   std::size_t keep_every = 1;
   std::optional<double> odometry_min_constraint, mapping_min_constraint, nearby_elevation_deg;
-  std::optional<double> minimum_range;
+  std::optional<double> minimum_range, corner_leaf, surf_leaf, leaf_min_scale;
   double kitti_vertical_correction = aloam::io::kKittiVerticalCorrectionDeg;
   std::size_t max_frames = 0;
 };
@@ -468,6 +473,21 @@ bool parse(int argc, char** argv, Options& o)
       value(number);
       o.minimum_range = std::stod(number);
     }
+    else if (arg == "--corner-leaf")
+    {
+      value(number);
+      o.corner_leaf = std::stod(number);
+    }
+    else if (arg == "--surf-leaf")
+    {
+      value(number);
+      o.surf_leaf = std::stod(number);
+    }
+    else if (arg == "--leaf-min-scale")
+    {
+      value(number);
+      o.leaf_min_scale = std::stod(number);
+    }
     else if (arg == "--kitti-vertical-correction")
     {
       value(number);
@@ -569,8 +589,17 @@ int main(int argc, char** argv)
   {
     config.mapping.min_constraint = *opt.mapping_min_constraint;
   }
+  if (opt.corner_leaf)
+  {
+    config.mapping.corner_leaf_size = *opt.corner_leaf;
+  }
+  if (opt.surf_leaf)
+  {
+    config.mapping.surf_leaf_size = *opt.surf_leaf;
+  }
   if (opt.baseline)
   {
+    config.mapping.leaf_min_scale = 1.0;
     config.odometry.degeneracy_remap = false;
     config.odometry.time_scaling = false;
     config.odometry.motion_hypotheses = false;
@@ -578,6 +607,10 @@ int main(int argc, char** argv)
     config.mapping.degeneracy_remap = false;
     config.mapping.hard_frame_outer_iterations = 0;
     config.mapping.deskew_first_late = false;
+  }
+  if (opt.leaf_min_scale)
+  {
+    config.mapping.leaf_min_scale = *opt.leaf_min_scale;
   }
   if (opt.nearby_elevation_deg)
   {
@@ -684,6 +717,7 @@ int main(int argc, char** argv)
   std::vector<double> registration_ms, odometry_ms, mapping_ms, update_ms, pose_ms, total_ms;
   std::size_t rejected = 0, degraded_odometry = 0, degraded_mapping = 0, remapped_odometry = 0, remapped_mapping = 0;
   std::size_t hypotheses_tried = 0, hypotheses_kept = 0;
+  std::map<double, std::size_t> leaf_scales;  // frames mapped with each leaf scale
   std::vector<double> inlier_shares, loop_ms;
   // The mapped poses, which loop closure moves after the fact (the trajectory written at the end).
   std::vector<aloam::Pose> mapped;
@@ -713,6 +747,7 @@ int main(int argc, char** argv)
         remapped_mapping += out.mapping.status == aloam::MappingStatus::kRemapped;
         hypotheses_tried += out.odometry.hypotheses_tried;
         hypotheses_kept += out.odometry.hypothesis > 0;
+        ++leaf_scales[out.mapping.leaf_scale];
         if (out.odometry.status != aloam::OdometryStatus::kInitialized)
         {
           inlier_shares.push_back(out.odometry.inlier_share);
@@ -844,6 +879,12 @@ int main(int argc, char** argv)
             << " median " << (inlier_shares.empty() ? 0.0 : inlier_shares[inlier_shares.size() / 2]) << "\n";
   std::cout << "partially degenerate (remapped): odometry " << remapped_odometry << "  mapping " << remapped_mapping
             << "\n";
+  std::cout << "mapping leaf scale (frames):";
+  for (const auto& [scale, count] : leaf_scales)
+  {
+    std::cout << " " << scale << " (" << count << ")";
+  }
+  std::cout << "\n";
   std::cout << "registration: " << summary(registration_ms) << "\n";
   std::cout << "odometry:     " << summary(odometry_ms) << "\n";
   std::cout << "mapping:      " << summary(mapping_ms) << "\n";

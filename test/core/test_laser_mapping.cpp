@@ -329,6 +329,64 @@ TEST(LaserMappingTest, SetConfigRebucketsAndResetClears)
   EXPECT_NEAR(ts::translationError(mapping.correction(), Pose()), 0.0, kExactMetres);
 }
 
+// A frame whose plane points lie on a sphere of `range` round the sensor (and a few edge points): a room
+// (3 m), a street (20 m).
+OdometryFrame sphereFrame(double range, double stamp)
+{
+  constexpr int kPoints = 800;
+  auto surfs = std::make_shared<Cloud>();
+  auto corners = std::make_shared<Cloud>();
+  for (int i = 0; i < kPoints; ++i)
+  {
+    // Golden-angle spiral: near-uniform directions.
+    const double z = 1.0 - (2.0 * i + 1.0) / kPoints;
+    const double azimuth = 2.399963 * i;
+    const double radius = std::sqrt(1.0 - z * z);
+    Point p;
+    p.x = static_cast<float>(range * radius * std::cos(azimuth));
+    p.y = static_cast<float>(range * radius * std::sin(azimuth));
+    p.z = static_cast<float>(range * z);
+    (i % 20 == 0 ? corners : surfs)->points.push_back(p);
+  }
+  OdometryFrame frame;
+  frame.stamp = stamp;
+  frame.dt = 0.1;
+  frame.corners = corners;
+  frame.surfs = surfs;
+  return frame;
+}
+
+// Leaves shrink by powers of two when the plane points are near (leaf_min_scale, leaf_reference_range
+// 16 m), and a scale holds until the scene is well past the midpoint to the next one.
+TEST(LaserMappingTest, LeavesShrinkInConfinedScenes)
+{
+  LaserMapping mapping;
+  ASSERT_DOUBLE_EQ(mapping.config().leaf_reference_range, 16.0);
+  ASSERT_DOUBLE_EQ(mapping.config().leaf_min_scale, 0.25);
+  double stamp = 0.0;
+  auto scaleAt = [&](double range) { return mapping.process(sphereFrame(range, stamp += 0.1)).leaf_scale; };
+  EXPECT_EQ(scaleAt(20.0), 1.0);  // a street
+  EXPECT_EQ(scaleAt(12.0), 1.0);  // log2(12 / 16) = -0.42: holds
+  EXPECT_EQ(scaleAt(3.0), 0.25);  // a room: -2.4, at most 1/4
+  EXPECT_EQ(scaleAt(5.5), 0.25);  // -1.54: within 0.65 of 1/4, holds
+  EXPECT_EQ(scaleAt(7.0), 0.5);   // -1.19: moves to the nearest, 1/2
+  EXPECT_EQ(scaleAt(10.0), 0.5);  // -0.68: holds
+  EXPECT_EQ(scaleAt(13.0), 1.0);  // -0.30
+  mapping.reset();
+  EXPECT_EQ(scaleAt(3.0), 0.25);
+
+  // The room's map is denser with the shrunk leaves; with leaf_min_scale 1 the leaves stay as configured.
+  LaserMappingConfig fixed = mapping.config();
+  fixed.leaf_min_scale = 1.0;
+  LaserMapping fixed_mapping(fixed);
+  EXPECT_EQ(fixed_mapping.process(sphereFrame(3.0, 0.1)).leaf_scale, 1.0);
+  EXPECT_GT(mapping.map().surfCount(), 2 * fixed_mapping.map().surfCount());
+  LaserMappingConfig half = fixed;
+  half.leaf_min_scale = 0.5;
+  mapping.setConfig(half);
+  EXPECT_EQ(scaleAt(3.0), 0.5);
+}
+
 // The first sweep of a deskewed drive (its motion unknown, so still distorted) goes into the map with the
 // second, deskewed with the second sweep's motion (deskew_first_late): after two sweeps the map holds more
 // than the second sweep alone, and the drive tracks at least as well as without it (14-sweep HDL-64 drive:

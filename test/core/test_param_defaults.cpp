@@ -164,6 +164,8 @@ std::map<std::string, Defaults> structDefaults()
       { "cube_size", str(m.cube_size) },
       { "corner_leaf_size", str(m.corner_leaf_size) },
       { "surf_leaf_size", str(m.surf_leaf_size) },
+      { "leaf_min_scale", str(m.leaf_min_scale) },
+      { "leaf_reference_range", str(m.leaf_reference_range) },
       { "max_iterations", str(m.max_iterations) },
       { "outer_iterations", str(m.outer_iterations) },
       { "plane_neighbours", str(m.plane_neighbours) },

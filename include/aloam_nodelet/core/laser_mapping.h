@@ -24,8 +24,15 @@ struct LaserMappingConfig
   int submap_half_z = 1;          ///< ... and z
   double corner_leaf_size = 0.4;  ///< voxel leaf for edge points, scan and map (m)
   double surf_leaf_size = 0.8;    ///< voxel leaf for plane points, scan and map (m)
-  int max_iterations = 4;         ///< Levenberg-Marquardt iterations per solve
-  int outer_iterations = 2;       ///< correspondence searches per frame, each followed by a solve
+  /// Leaves follow the scene's size: when the median range of a sweep's plane points is below
+  /// leaf_reference_range, both leaves shrink by the power of two (1/2, 1/4, ...) nearest to median /
+  /// reference, down to this scale. Leaves sized for a street keep a handful of points per wall of a 2 m
+  /// corridor. Changes need a margin past the midpoint between two scales, so that the map is not
+  /// re-indexed back and forth. 1: fixed leaves (A-LOAM).
+  double leaf_min_scale = 0.25;
+  double leaf_reference_range = 16.0;  ///< m; see leaf_min_scale
+  int max_iterations = 4;              ///< Levenberg-Marquardt iterations per solve
+  int outer_iterations = 2;            ///< correspondence searches per frame, each followed by a solve
   /// Searches for a frame odometry found hard (OdometryFrame::hard(): motion hypotheses tried, degraded
   /// or remapped): its pose is less certain, so mapping searches more often from it. 4 measured better
   /// than 2 on the simulated yaw bursts, 8 no better (docs/accuracy.md#measurements-behind-defaults).
@@ -114,6 +121,7 @@ struct MappingResult
   std::size_t map_surfs = 0;
   std::size_t cubes = 0;
   std::size_t evicted_cubes = 0;  ///< cubes evicted while processing this frame
+  double leaf_scale = 1.0;        ///< the leaves of this frame: the configured ones times this
 };
 
 /// How well a sweep at a pose fits the submap: the figures localization decides with.
@@ -180,7 +188,8 @@ public:
   void rebuildMap(const std::vector<MapSweep>& sweeps, const Pose& change);
   /// The same with the map built beforehand (buildMap), so that the building need not hold the stage.
   void replaceMap(CubeMap map, const Pose& change);
-  /// A map of these sweeps as rebuildMap() makes it, with the configuration's cube and leaf sizes.
+  /// A map of these sweeps as rebuildMap() makes it, with the configuration's cube and leaf sizes (rebuildMap()
+  /// scales the leaves as the current frame's are).
   static CubeMap buildMap(const std::vector<MapSweep>& sweeps, const LaserMappingConfig& config);
   /// A run that continues a saved map: reset(), then `map` (buildMap of the saved keyframes) is the map and
   /// `correction` (map <- odometry world: where the run's odometry starts in the saved map) predicts the
@@ -228,6 +237,7 @@ private:
   LaserMappingConfig config_;
   std::shared_ptr<Executor> executor_;
   bool frozen_ = false;
+  double leaf_scale_ = 1.0;  ///< see LaserMappingConfig::leaf_min_scale
   CubeMap map_;
   Pose correction_;
   std::size_t evicted_total_ = 0;
@@ -256,6 +266,11 @@ private:
   Cloud first_corners_, first_surfs_;
   Pose first_pose_;
   bool pending_first_ = false;
+
+  double cornerLeaf() const { return config_.corner_leaf_size * leaf_scale_; }
+  double surfLeaf() const { return config_.surf_leaf_size * leaf_scale_; }
+  /// Sets the leaf scale for a sweep with these plane points (sensor frame) and re-indexes the map if it changed.
+  void adaptLeaves(const Cloud& surfs);
 
   /// Deskews the held first sweep with `frame`'s motion and queues it for updateMap().
   void releaseHeldFirst(const OdometryFrame& frame);
