@@ -138,12 +138,6 @@ void LaserMapping::setConfig(const LaserMappingConfig& config)
   map_.setLeafSizes(cornerLeaf(), surfLeaf());
 }
 
-void LaserMapping::adaptLeaves(const Cloud& surfs)
-{
-  leaf_scale_ = sceneLeafScale(surfs, config_.leaf_reference_range, config_.leaf_min_scale, leaf_scale_);
-  map_.setLeafSizes(cornerLeaf(), surfLeaf());  // re-indexes only when they changed
-}
-
 void LaserMapping::reset()
 {
   map_.clear();
@@ -370,7 +364,8 @@ MappingResult LaserMapping::registerFrame(const OdometryFrame& frame)
   result.stamp = frame.stamp;
   if (!frozen_ && frame.surfs)
   {
-    adaptLeaves(*frame.surfs);
+    // The map follows in updateMap(), off the pose path.
+    leaf_scale_ = sceneLeafScale(*frame.surfs, config_.leaf_reference_range, config_.leaf_min_scale, leaf_scale_);
   }
   result.leaf_scale = leaf_scale_;
   const Pose prediction = correction_ * frame.pose;
@@ -451,6 +446,7 @@ MappingResult LaserMapping::registerFrame(const OdometryFrame& frame)
 
 void LaserMapping::updateMap(MappingResult& result)
 {
+  map_.setLeafSizes(cornerLeaf(), surfLeaf());  // re-indexes only when the leaf scale changed
   if (pending_first_)
   {
     insertSweep(map_, &first_corners_, &first_surfs_, first_pose_);

@@ -364,7 +364,19 @@ bool parse(int argc, char** argv, Options& o)
       }
       out = argv[++i];
     };
-    std::string number;
+    // A real (double or optional double) or a count (std::size_t) option.
+    auto real = [&](auto& out)
+    {
+      std::string number;
+      value(number);
+      out = std::stod(number);
+    };
+    auto count = [&](std::size_t& out)
+    {
+      std::string number;
+      value(number);
+      out = static_cast<std::size_t>(std::stoul(number));
+    };
     if (arg == "--kitti")
       value(o.kitti_dir);
     else if (arg == "--bag")
@@ -394,10 +406,7 @@ bool parse(int argc, char** argv, Options& o)
     else if (arg == "--global")
       o.global = true;
     else if (arg == "--start-frame")
-    {
-      value(number);
-      o.start_frame = static_cast<std::size_t>(std::stoul(number));
-    }
+      count(o.start_frame);
     else if (arg == "--deskew")
       o.deskew = true;
     else if (arg == "--loop-closure")
@@ -409,15 +418,9 @@ bool parse(int argc, char** argv, Options& o)
     else if (arg == "--load-graph")
       value(o.load_graph);
     else if (arg == "--min-loop-separation")
-    {
-      value(number);
-      o.min_loop_separation = std::stod(number);
-    }
+      real(o.min_loop_separation);
     else if (arg == "--keyframe-distance")
-    {
-      value(number);
-      o.keyframe_distance = std::stod(number);
-    }
+      real(o.keyframe_distance);
     else if (arg == "--baseline")
       o.baseline = true;
     else if (arg == "--no-motion-hypotheses")
@@ -435,69 +438,35 @@ bool parse(int argc, char** argv, Options& o)
       o.reject_occluded = onoff == "on";
     }
     else if (arg == "--occlusion-continuity")
-    {
-      value(number);
-      o.occlusion_continuity = std::stod(number);
-    }
+      real(o.occlusion_continuity);
     else if (arg == "--occlusion-straight")
-    {
-      value(number);
-      o.occlusion_straight = std::stod(number);
-    }
+      real(o.occlusion_straight);
     else if (arg == "--odometry-min-constraint")
-    {
-      value(number);
-      o.odometry_min_constraint = std::stod(number);
-    }
+      real(o.odometry_min_constraint);
     else if (arg == "--mapping-min-constraint")
-    {
-      value(number);
-      o.mapping_min_constraint = std::stod(number);
-    }
+      real(o.mapping_min_constraint);
     else if (arg == "--nearby-elevation-deg")
-    {
-      value(number);
-      o.nearby_elevation_deg = std::stod(number);
-    }
+      real(o.nearby_elevation_deg);
     else if (arg == "--keep-every")
     {
-      value(number);
-      o.keep_every = static_cast<std::size_t>(std::stoul(number));
+      count(o.keep_every);
       if (o.keep_every == 0)
       {
         throw std::invalid_argument("--keep-every needs N >= 1");
       }
     }
     else if (arg == "--minimum-range")
-    {
-      value(number);
-      o.minimum_range = std::stod(number);
-    }
+      real(o.minimum_range);
     else if (arg == "--corner-leaf")
-    {
-      value(number);
-      o.corner_leaf = std::stod(number);
-    }
+      real(o.corner_leaf);
     else if (arg == "--surf-leaf")
-    {
-      value(number);
-      o.surf_leaf = std::stod(number);
-    }
+      real(o.surf_leaf);
     else if (arg == "--leaf-min-scale")
-    {
-      value(number);
-      o.leaf_min_scale = std::stod(number);
-    }
+      real(o.leaf_min_scale);
     else if (arg == "--kitti-vertical-correction")
-    {
-      value(number);
-      o.kitti_vertical_correction = std::stod(number);
-    }
+      real(o.kitti_vertical_correction);
     else if (arg == "--max-frames")
-    {
-      value(number);
-      o.max_frames = static_cast<std::size_t>(std::stoul(number));
-    }
+      count(o.max_frames);
     else if (arg == "--help" || arg == "-h")
     {
       std::cout << kUsage;

@@ -329,6 +329,8 @@ TEST(LaserMappingTest, SetConfigRebucketsAndResetClears)
   EXPECT_NEAR(ts::translationError(mapping.correction(), Pose()), 0.0, kExactMetres);
 }
 
+namespace
+{
 // A frame whose plane points lie on a sphere of `range` round the sensor (and a few edge points): a room
 // (3 m), a street (20 m).
 OdometryFrame sphereFrame(double range, double stamp)
@@ -355,6 +357,7 @@ OdometryFrame sphereFrame(double range, double stamp)
   frame.surfs = surfs;
   return frame;
 }
+}  // namespace
 
 // Leaves shrink by powers of two when the plane points are near (leaf_min_scale, leaf_reference_range
 // 16 m), and a scale holds until the scene is well past the midpoint to the next one.

@@ -269,8 +269,6 @@ private:
 
   double cornerLeaf() const { return config_.corner_leaf_size * leaf_scale_; }
   double surfLeaf() const { return config_.surf_leaf_size * leaf_scale_; }
-  /// Sets the leaf scale for a sweep with these plane points (sensor frame) and re-indexes the map if it changed.
-  void adaptLeaves(const Cloud& surfs);
 
   /// Deskews the held first sweep with `frame`'s motion and queues it for updateMap().
   void releaseHeldFirst(const OdometryFrame& frame);
