@@ -159,9 +159,9 @@ sanitize_compile() {
     { echo "FAILED compiling with ${flags[*]}"; return 1; }
 }
 
-# sanitize_build_core_tests ROOT OUT_DIR EXE SET COMMAND...: compiles the core into OUT_DIR/core and
-# the SET of test sources (sanitize_core_sources) into OUT_DIR/obj with COMMAND (sanitize_command), and links OUT_DIR/EXE if an object is
-# newer. Returns non-zero if anything fails to build.
+# sanitize_build_core_tests ROOT OUT_DIR EXE SET COMMAND...: compiles the core into OUT_DIR/core and the
+# SET of test sources (sanitize_core_sources) into OUT_DIR/obj with COMMAND (sanitize_command), and links
+# OUT_DIR/EXE if an object is newer. Returns non-zero if anything fails to build.
 sanitize_build_core_tests() {
   local root="$1" out="$2" exe="$3" set="$4"
   shift 4
@@ -171,7 +171,8 @@ sanitize_build_core_tests() {
   sanitize_compile "$root" "$out/core" "$@" -- "${core[@]}" || return 1
   sanitize_compile "$root" "$out/obj" "$@" -- "${tests[@]}" || return 1
   # Only the objects of today's sources (an old object of a removed source may still be there).
-  mapfile -t objects < <(sanitize_objects "$out/core" "$root" "${core[@]}"; sanitize_objects "$out/obj" "$root" "${tests[@]}")
+  mapfile -t objects < <(sanitize_objects "$out/core" "$root" "${core[@]}"
+    sanitize_objects "$out/obj" "$root" "${tests[@]}")
   if sanitize_stale "$root" "$out/$exe" "${objects[@]}"; then
     "$@" "${objects[@]}" -lceres -lglog -lpcl_common -lpcl_io -lgtest -lgtest_main -pthread -o "$out/$exe" ||
       { echo "FAILED linking the core tests with $*"; return 1; }
