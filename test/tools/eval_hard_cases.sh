@@ -12,12 +12,16 @@
 # Needs Debian's python3 (rosbag, numpy) first on PATH and the workspace's setup.bash sourced.
 #
 # Columns: ATE (m, after rigid alignment, aloam_eval), translation drift (%) and rotation drift
-# (deg/100 m) over the case's segment lengths, the largest heading (yaw) error without alignment (deg),
-# and how many estimated steps move against the true step (dot product < 0) among the true steps
-# longer than 5 cm. frames / period_s are the published sweeps and the spacing of their stamps.
-# A-LOAM's ATE and rotation drift on the same sweeps stand beside ours (aloam_ate_m, aloam_rot) when A-LOAM is
-# built (check_lib.sh's run_peer: ../shared/peers/build_aloam.sh, ALOAM_PEER_WS); otherwise they read
-# "not_run", and "-" where A-LOAM has no launch values for the sensor (Ouster).
+# (deg/100 m) over the case's segment lengths; the rotation drift over the segments whose two ends lie
+# outside fast turns (a true yaw step above 3 deg and the 3 sweeps after: hard_case_metrics.py bursts);
+# the largest heading (yaw) error without alignment (deg); the 90th percentile of the rotation error of
+# single sweep-to-sweep steps (deg); and how many estimated steps move against the true step (dot
+# product < 0) among the true steps longer than 5 cm. frames / period_s are the published sweeps and the
+# spacing of their stamps.
+# A-LOAM's ATE and rotation drifts on the same sweeps stand beside ours (aloam_ate_m, aloam_rot,
+# aloam_steady) when A-LOAM is built (check_lib.sh's run_peer: ../shared/peers/build_aloam.sh,
+# ALOAM_PEER_WS); otherwise they read "not_run", and "-" where A-LOAM has no launch values for the sensor
+# (Ouster).
 set -uo pipefail
 source "$(dirname "$0")/check_lib.sh"
 need_args 2 $#
@@ -42,8 +46,8 @@ case_table=(
 )
 
 results="$out/results.txt"
-header=$(printf "%-20s %4s %6s %8s %8s %9s %12s %11s %9s %11s %10s" case seed frames period_s ate_m drift_% \
-  "rot_deg/100m" max_head_deg backward aloam_ate_m aloam_rot)
+header=$(printf "%-20s %4s %6s %8s %8s %9s %12s %10s %11s %13s %9s %11s %10s %12s" case seed frames period_s ate_m \
+  drift_% "rot_deg/100m" rot_steady max_head_deg step_rot_p90 backward aloam_ate_m aloam_rot aloam_steady)
 with_peer=0
 peer_ready && with_peer=1
 export WITH_KITTI=$with_peer
@@ -65,20 +69,25 @@ for row in "${case_table[@]}"; do
       status=1
       continue
     fi
-    peer_ate=not_run peer_rot=not_run
+    peer_ate=not_run peer_rot=not_run peer_steady=not_run
     if [ $with_peer = 1 ]; then
       if run_peer "$run" aloam "$sensor" "$segments" >/dev/null; then
         peer_ate=$(figure ate_rmse_m "$run/aloam.eval.txt") peer_rot=$(figure rotation_deg_per_100m "$run/aloam.eval.txt")
+        python3 "$hard_case_metrics" bursts "$run/gt.txt" "$run/aloam.txt" "$segments" >"$run/aloam.bursts.txt" 2>&1
+        peer_steady=$(field rot_steady "$run/aloam.bursts.txt")
       else
-        peer_ate=- peer_rot=-
+        peer_ate=- peer_rot=- peer_steady=-
       fi
     fi
     [ "${KEEP_BAGS:-0}" = 1 ] || rm -rf "$run/sim.bag" "$run/kitti"
-    printf "%-20s %4s %6s %8s %8s %9s %12s %11s %9s %11s %10s\n" "$name" "$seed" "$(field frames "$run/gt_info.txt")" \
+    python3 "$hard_case_metrics" bursts "$run/gt.txt" "$run/est.txt" "$segments" >"$run/est.bursts.txt" 2>&1
+    printf "%-20s %4s %6s %8s %8s %9s %12s %10s %11s %13s %9s %11s %10s %12s\n" "$name" "$seed" "$(field frames "$run/gt_info.txt")" \
       "$(field period_s "$run/gt_info.txt")" "$(figure ate_rmse_m "$run/est.eval.txt")" \
       "$(figure translation_drift_percent "$run/est.eval.txt")" "$(figure rotation_deg_per_100m "$run/est.eval.txt")" \
-      "$(field max_heading_deg "$run/est.compare.txt")" \
-      "$(field backward_steps "$run/est.compare.txt")/$(field of "$run/est.compare.txt")" "$peer_ate" "$peer_rot" |
+      "$(field rot_steady "$run/est.bursts.txt")" "$(field max_heading_deg "$run/est.compare.txt")" \
+      "$(field step_rot_p90_deg "$run/est.compare.txt")" \
+      "$(field backward_steps "$run/est.compare.txt")/$(field of "$run/est.compare.txt")" "$peer_ate" "$peer_rot" \
+      "$peer_steady" |
       tee -a "$results"
   done
 done

@@ -6,9 +6,17 @@
       the first pose and prints `frames N period_s P` (P: median spacing of the message stamps).
   hard_case_metrics.py compare GT.txt EST.txt
       Both relative to their first pose, no alignment. Prints
-      `max_heading_deg H backward_steps B of S min_step_cos C`: the largest yaw difference, and how many
-      estimated steps point against the true step (dot product < 0) among the S true steps longer than
-      MIN_STEP_M (C: the smallest cosine between estimated and true step among them).
+      `max_heading_deg H backward_steps B of S min_step_cos C step_rot_p90_deg R step_rot_max_deg M`: the
+      largest yaw difference; how many estimated steps point against the true step (dot product < 0) among
+      the S true steps longer than MIN_STEP_M (C: the smallest cosine between estimated and true step among
+      them); and the 90th percentile and largest rotation error of a single step (sweep to sweep), which
+      short-lived heading errors (a yaw burst's first sweeps) dominate while the drift over segments
+      averages them with the steady stretches.
+  hard_case_metrics.py bursts GT.txt EST.txt SEGMENTS
+      Rotation drift (deg/100 m, KITTI-style: every start sweep, segments of the comma-separated SEGMENTS
+      metres of true path) over all segments and over the segments whose two ends lie outside yaw bursts
+      (a true yaw step above BURST_STEP_DEG and the BURST_AFTER sweeps after it): `rot_all R N rot_steady
+      S M` (N, M: segment counts). The gap between them is what the bursts' short-lived errors add.
 """
 import math
 import os
@@ -21,6 +29,8 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 from aloam_poses import quat_to_rot, read_kitti, write_kitti  # noqa: E402
 
 MIN_STEP_M = 0.05
+BURST_STEP_DEG = 3.0
+BURST_AFTER = 3
 
 
 def pose_to_matrix(pose):
@@ -60,7 +70,10 @@ def compare(gt_path, est_path):
     est = [est0 @ m for m in est[:n]]
     heading = max(abs(math.degrees(math.remainder(yaw(e) - yaw(g), 2.0 * math.pi))) for e, g in zip(est, gt))
     backward, steps, min_cos = 0, 0, 1.0
+    step_rot = []
     for i in range(n - 1):
+        error = np.linalg.inv(gt[i + 1]) @ gt[i] @ np.linalg.inv(est[i]) @ est[i + 1]
+        step_rot.append(rotation_deg(error))
         true_step = gt[i + 1][:3, 3] - gt[i][:3, 3]
         est_step = est[i + 1][:3, 3] - est[i][:3, 3]
         length = np.linalg.norm(true_step)
@@ -72,7 +85,38 @@ def compare(gt_path, est_path):
             backward += 1
         est_length = np.linalg.norm(est_step)
         min_cos = min(min_cos, dot / (length * est_length) if est_length > 0.0 else 0.0)
-    print("max_heading_deg %.2f backward_steps %d of %d min_step_cos %.2f" % (heading, backward, steps, min_cos))
+    print("max_heading_deg %.2f backward_steps %d of %d min_step_cos %.2f step_rot_p90_deg %.2f step_rot_max_deg %.2f" %
+          (heading, backward, steps, min_cos, np.percentile(step_rot, 90), max(step_rot)))
+
+
+def rotation_deg(m):
+    return math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(m[:3, :3]) - 1.0) / 2.0))))
+
+
+def bursts(gt_path, est_path, segments):
+    gt, est = read_kitti(gt_path), read_kitti(est_path)
+    n = min(len(gt), len(est))
+    path = np.concatenate([[0.0], np.cumsum([np.linalg.norm(gt[i + 1][:3, 3] - gt[i][:3, 3]) for i in range(n - 1)])])
+    burst = [False] * n
+    for i in range(1, n):
+        if abs(math.degrees(yaw(np.linalg.inv(gt[i - 1]) @ gt[i]))) > BURST_STEP_DEG:
+            for j in range(i, min(n, i + BURST_AFTER + 1)):
+                burst[j] = True
+    every, steady = [], []
+    for length in segments:
+        for i in range(n):
+            j = int(np.searchsorted(path, path[i] + length))
+            if j >= n:
+                break
+            error = np.linalg.inv(np.linalg.inv(gt[i]) @ gt[j]) @ np.linalg.inv(est[i]) @ est[j]
+            drift = rotation_deg(error) / length * 100.0
+            every.append(drift)
+            if not burst[i] and not burst[j]:
+                steady.append(drift)
+    def mean(values):
+        return float(np.mean(values)) if values else float("nan")
+
+    print("rot_all %.2f %d rot_steady %.2f %d" % (mean(every), len(every), mean(steady), len(steady)))
 
 
 def main():
@@ -80,6 +124,8 @@ def main():
         ground_truth(sys.argv[2], sys.argv[3])
     elif len(sys.argv) == 4 and sys.argv[1] == "compare":
         compare(sys.argv[2], sys.argv[3])
+    elif len(sys.argv) == 5 and sys.argv[1] == "bursts":
+        bursts(sys.argv[2], sys.argv[3], [float(x) for x in sys.argv[4].split(",")])
     else:
         sys.exit(__doc__)
 
