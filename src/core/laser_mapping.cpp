@@ -7,6 +7,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "aloam_nodelet/core/pose_solver.h"
+#include "aloam_nodelet/core/sweep_span.h"
 #include "aloam_nodelet/core/voxel_filter.h"
 
 namespace aloam
@@ -17,6 +18,13 @@ Eigen::Vector3d vec(const Point& p)
 {
   return Eigen::Vector3d(p.x, p.y, p.z);
 }
+
+// Sweeps follow each other when their stamps are a scan period apart within this share of it.
+constexpr double kContiguousTolerance = 0.05;
+// A span solve whose end turned farther than this from the rigid solve's ran off (rad).
+constexpr double kMaxSpanTurn = 10.0 * M_PI / 180.0;
+// Points per chunk of the span solve's correspondence search.
+constexpr int kMinChunk = 256;
 
 // Centroid and scatter matrix of the points `index` selects.
 void centroidAndScatter(const Cloud& cloud, const std::vector<int>& index, Eigen::Vector3d& centroid,
@@ -148,6 +156,8 @@ void LaserMapping::reset()
   held_first_.reset();
   pending_first_ = false;
   correction_ = Pose();
+  last_motion_ = Pose();
+  last_motion_known_ = false;
   evicted_total_ = 0;
   run_started_ = false;
   continued_ = false;
@@ -340,6 +350,102 @@ void LaserMapping::releaseHeldFirst(const OdometryFrame& frame)
   pending_first_ = true;
 }
 
+bool LaserMapping::motionChanged(const OdometryFrame& frame) const
+{
+  if (!last_motion_known_)
+  {
+    return false;  // the first motion after a start: nothing to compare it with
+  }
+  const Pose change = last_motion_.inverse() * frame.motion;
+  return Eigen::AngleAxisd(change.q).angle() > config_.span_motion_change_deg * M_PI / 180.0 ||
+         change.t.norm() > config_.span_motion_change_m;
+}
+
+bool LaserMapping::solveSpan(const OdometryFrame& frame, const Pose& prediction, Pose& pose)
+{
+  const Pose& used = frame.full_motion;  // sweep start <- end, as odometry deskewed the clouds
+  const double period = frame.scan_period;
+  if (used.isIdentity() || !(period > 0.0) || !(frame.dt > 0.0) ||
+      std::fabs(frame.dt / period - 1.0) > kContiguousTolerance || frame.status == OdometryStatus::kInitialized)
+  {
+    return false;  // not deskewed, or the previous sweep did not end where this one started
+  }
+  // Each point back where the sensor was when it took it, and when that was (fraction of the sweep).
+  std::vector<Point> points;
+  std::vector<double> fraction;
+  points.reserve(corner_stack_.size() + surf_stack_.size());
+  for (const Cloud* stack : { &corner_stack_, &surf_stack_ })
+  {
+    for (const Point& p : stack->points)
+    {
+      const double s = std::clamp(p.time / period, 0.0, 1.0);
+      points.push_back(transformPoint(used.interpolated(s).inverse() * used, p));
+      fraction.push_back(s);
+    }
+  }
+  const int corners = static_cast<int>(corner_stack_.size());
+  const int total = static_cast<int>(points.size());
+
+  const Pose start_prior = prediction * frame.motion.inverse();
+  SweepSpan span{ start_prior, pose };
+  SweepSpanOptions options;
+  options.max_iterations = config_.max_iterations;
+  options.huber_delta = config_.huber_delta;
+  options.start_weight = config_.span_start_weight;
+  options.lever_arm = config_.constraint_lever_arm;
+  std::vector<SpanLineMatch> line_slots(corners);
+  std::vector<SpanPlaneMatch> plane_slots(total - corners);
+  std::vector<char> found(total);
+  std::vector<SpanLineMatch> lines;
+  std::vector<SpanPlaneMatch> planes;
+  for (int round = 0; round < config_.span_iterations; ++round)
+  {
+    executor_->parallelChunks(total, config_.threads, kMinChunk,
+                              [&](int begin, int end, int)
+                              {
+                                for (int i = begin; i < end; ++i)
+                                {
+                                  const Pose at = span.at(fraction[i]);
+                                  found[i] = i < corners ? matchEdge(points[i], at, line_slots[i].match)
+                                                         : matchPlane(points[i], at, plane_slots[i - corners].match);
+                                }
+                              });
+    lines.clear();
+    planes.clear();
+    for (int i = 0; i < total; ++i)
+    {
+      if (found[i] && i < corners)
+      {
+        lines.push_back(line_slots[i]);
+        lines.back().s = fraction[i];
+      }
+      else if (found[i])
+      {
+        planes.push_back(plane_slots[i - corners]);
+        planes.back().s = fraction[i];
+      }
+    }
+    if (static_cast<int>(lines.size() + planes.size()) < config_.min_correspondences ||
+        !solveSweepSpan(span, lines, planes, start_prior.q, options))
+    {
+      return false;
+    }
+  }
+  if (span.end.q.angularDistance(pose.q) > kMaxSpanTurn)
+  {
+    return false;  // a solve that ran off: keep the rigid one
+  }
+  pose = span.end;
+  // The clouds as the span places them, for the map.
+  const Pose end_inverse = span.end.inverse();
+  for (int i = 0; i < total; ++i)
+  {
+    Point& p = i < corners ? corner_stack_.points[i] : surf_stack_.points[i - corners];
+    p = transformPoint(end_inverse * span.at(fraction[i]), points[i]);
+  }
+  return true;
+}
+
 MappingResult LaserMapping::process(const OdometryFrame& frame)
 {
   MappingResult result = registerFrame(frame);
@@ -409,6 +515,10 @@ MappingResult LaserMapping::registerFrame(const OdometryFrame& frame)
     if (enough && result.constraint >= config_.min_constraint && sane)
     {
       result.status = MappingStatus::kOk;
+      if (config_.sweep_span && result.constraint >= config_.span_min_constraint && motionChanged(frame))
+      {
+        result.span_solved = solveSpan(frame, prediction, pose);
+      }
     }
     else if (enough && sane && solved.remapped)
     {
@@ -421,6 +531,8 @@ MappingResult LaserMapping::registerFrame(const OdometryFrame& frame)
     }
   }
 
+  last_motion_ = frame.motion;
+  last_motion_known_ = frame.status != OdometryStatus::kInitialized;
   correction_ = pose * frame.pose.inverse();
   result.pose = pose;
   result.correction = correction_;

@@ -447,6 +447,11 @@ void LaserMappingNodelet::reconfigureCb(const LaserMappingConfig& c)
   config.degeneracy_remap = c.degeneracy_remap;
   config.soft_remap = c.soft_remap;
   config.deskew_first_late = c.deskew_first_late;
+  config.sweep_span = c.sweep_span;
+  config.span_motion_change_deg = c.span_motion_change_deg;
+  config.span_motion_change_m = c.span_motion_change_m;
+  config.span_min_constraint = c.span_min_constraint;
+  config.span_start_weight = c.span_start_weight;
   aloam::LoopClosureConfig loop;
   loop.matching = config;
   loop.keyframe_distance = c.keyframe_distance;

@@ -94,7 +94,8 @@ constexpr const char* kUsage =
     "  --baseline         the handling of degeneracy and time of commit 81f6493 (A-LOAM-like): a weak direction\n"
     "                     keeps the whole prediction, and the last motion is the prediction and the deskew\n"
     "                     motion whatever the time between stamps, and odometry's ring neighbourhood counts\n"
-    "                     rings (nearby_scan) instead of degrees, and mapping's leaves stay as configured\n"
+    "                     rings (nearby_scan) instead of degrees, mapping's leaves stay as configured, and\n"
+    "                     every sweep has one pose (no sweep_span)\n"
     "  --nearby-elevation-deg DEG\n"
     "                     odometry's ring neighbourhood in degrees of elevation (0: nearby_scan rings)\n"
     "  --reject-occluded on|off\n"
@@ -109,6 +110,10 @@ constexpr const char* kUsage =
     "  --no-motion-hypotheses\n"
     "                     odometry never tries other starts after a poor solve (laser_odometry's\n"
     "                     motion_hypotheses: false)\n"
+    "  --sweep-span on|off laser_mapping's sweep_span (default on): a sweep in which the motion changed gets\n"
+    "                     a start and an end pose\n"
+    "  --span-start-weight W\n"
+    "                     laser_mapping's span_start_weight (default 3)\n"
     "  --hard-remap       mapping keeps the prediction entirely along weak directions (laser_mapping's\n"
     "                     soft_remap: false)\n"
     "  --odometry-min-constraint X, --mapping-min-constraint X\n"
@@ -129,7 +134,8 @@ struct Options
   bool baseline = false;
   bool motion_hypotheses = true;
   bool soft_remap = true;
-  std::optional<bool> reject_occluded;
+  std::optional<bool> reject_occluded, sweep_span;
+  std::optional<double> span_start_weight;
   std::optional<double> occlusion_continuity, occlusion_straight;
   std::size_t keep_every = 1;
   std::optional<double> odometry_min_constraint, mapping_min_constraint, nearby_elevation_deg;
@@ -377,6 +383,16 @@ bool parse(int argc, char** argv, Options& o)
       value(number);
       out = static_cast<std::size_t>(std::stoul(number));
     };
+    auto onOff = [&](std::optional<bool>& out)
+    {
+      std::string word;
+      value(word);
+      if (word != "on" && word != "off")
+      {
+        throw std::invalid_argument(arg + " takes on or off");
+      }
+      out = word == "on";
+    };
     if (arg == "--kitti")
       value(o.kitti_dir);
     else if (arg == "--bag")
@@ -428,15 +444,11 @@ bool parse(int argc, char** argv, Options& o)
     else if (arg == "--hard-remap")
       o.soft_remap = false;
     else if (arg == "--reject-occluded")
-    {
-      std::string onoff;
-      value(onoff);
-      if (onoff != "on" && onoff != "off")
-      {
-        throw std::invalid_argument("--reject-occluded takes on or off");
-      }
-      o.reject_occluded = onoff == "on";
-    }
+      onOff(o.reject_occluded);
+    else if (arg == "--sweep-span")
+      onOff(o.sweep_span);
+    else if (arg == "--span-start-weight")
+      real(o.span_start_weight);
     else if (arg == "--occlusion-continuity")
       real(o.occlusion_continuity);
     else if (arg == "--occlusion-straight")
@@ -576,6 +588,15 @@ int main(int argc, char** argv)
     config.mapping.degeneracy_remap = false;
     config.mapping.hard_frame_outer_iterations = 0;
     config.mapping.deskew_first_late = false;
+    config.mapping.sweep_span = false;
+  }
+  if (opt.sweep_span)
+  {
+    config.mapping.sweep_span = *opt.sweep_span;
+  }
+  if (opt.span_start_weight)
+  {
+    config.mapping.span_start_weight = *opt.span_start_weight;
   }
   if (opt.leaf_min_scale)
   {
@@ -684,7 +705,8 @@ int main(int argc, char** argv)
   aloam::eval::Trajectory trajectory, odometry_trajectory;
   std::vector<double> stamps;
   std::vector<double> registration_ms, odometry_ms, mapping_ms, update_ms, pose_ms, total_ms;
-  std::size_t rejected = 0, degraded_odometry = 0, degraded_mapping = 0, remapped_odometry = 0, remapped_mapping = 0;
+  std::size_t rejected = 0, degraded_odometry = 0, degraded_mapping = 0, remapped_odometry = 0, remapped_mapping = 0,
+              span_solved = 0;
   std::size_t hypotheses_tried = 0, hypotheses_kept = 0;
   std::map<double, std::size_t> leaf_scales;  // frames mapped with each leaf scale
   std::vector<double> inlier_shares, loop_ms;
@@ -717,6 +739,7 @@ int main(int argc, char** argv)
         hypotheses_tried += out.odometry.hypotheses_tried;
         hypotheses_kept += out.odometry.hypothesis > 0;
         ++leaf_scales[out.mapping.leaf_scale];
+        span_solved += out.mapping.span_solved ? 1 : 0;
         if (out.odometry.status != aloam::OdometryStatus::kInitialized)
         {
           inlier_shares.push_back(out.odometry.inlier_share);
@@ -848,6 +871,7 @@ int main(int argc, char** argv)
             << " median " << (inlier_shares.empty() ? 0.0 : inlier_shares[inlier_shares.size() / 2]) << "\n";
   std::cout << "partially degenerate (remapped): odometry " << remapped_odometry << "  mapping " << remapped_mapping
             << "\n";
+  std::cout << "sweeps solved with a start and an end pose (sweep_span): " << span_solved << "\n";
   std::cout << "mapping leaf scale (frames):";
   for (const auto& [scale, count] : leaf_scales)
   {

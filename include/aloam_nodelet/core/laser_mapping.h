@@ -51,6 +51,23 @@ struct LaserMappingConfig
   /// SearchMemo): the same trajectory up to rounding, half the later searches on KITTI. false: every
   /// search searches (A-LOAM; the tests' baseline).
   bool reuse_searches = true;
+  /// A sweep in which the motion changed (odometry's motion differs from the previous sweep's by more than
+  /// span_motion_change_deg or span_motion_change_m) was deskewed with a motion that is wrong within it:
+  /// after the rigid solve, mapping solves its start and end rotation (SweepSpan; the translation runs from
+  /// the previous sweep's end to the rigid solve's), the start held to where the previous sweep ended by
+  /// span_start_weight, and re-deskews the sweep with that motion before it enters the map. Only with
+  /// deskewing and sweeps that follow each other; false: one pose per sweep (A-LOAM).
+  bool sweep_span = true;
+  double span_motion_change_deg = 1.0;
+  double span_motion_change_m = 0.05;
+  /// How strongly the start stays where the previous sweep ended, as that many point matches would hold it.
+  /// Weak: the previous end may be wrong by what that sweep's own change of motion left in it.
+  double span_start_weight = 3.0;
+  int span_iterations = 2;  ///< correspondence searches of the span solve
+  /// Only sweeps whose rigid solve pinned every direction at least this well (constraint, as min_constraint)
+  /// are spanned: the span has no handling of weak directions, and in corridors its rotations wandered where
+  /// the rigid solve held the weak ones (docs/accuracy.md, "The sweep span").
+  double span_min_constraint = 100.0;
   int line_neighbours = 5;  ///< map points fitted per edge point (A-LOAM: 5)
   /// Farthest fitted neighbour (m^2), lines and planes. A-LOAM uses 1 m^2; with 0.8 m plane voxels five
   /// neighbours often lie just beyond 1 m, and 2 m^2 measured better on KITTI 00 (drift 1.28 % vs 1.30 %).
@@ -113,8 +130,9 @@ struct MappingResult
   MappingStatus status = MappingStatus::kMapTooSmall;
   int corner_matches = 0;
   int plane_matches = 0;
-  int reused_searches = 0;  ///< searches skipped because an earlier one of the frame still held (SearchMemo)
-  double constraint = 0.0;  ///< how well the matches pin the pose down (0: degenerate)
+  bool span_solved = false;  ///< the sweep's start and end were solved (LaserMappingConfig::sweep_span)
+  int reused_searches = 0;   ///< searches skipped because an earlier one of the frame still held (SearchMemo)
+  double constraint = 0.0;   ///< how well the matches pin the pose down (0: degenerate)
   /// Directions the matches did not pin down, in the sensor frame (see OdometryFrame::degenerate).
   std::vector<DegenerateDirection> degenerate;
   std::size_t map_corners = 0;
@@ -240,6 +258,8 @@ private:
   double leaf_scale_ = 1.0;  ///< see LaserMappingConfig::leaf_min_scale
   CubeMap map_;
   Pose correction_;
+  Pose last_motion_;                ///< odometry's motion of the previous frame (see motionChanged) ...
+  bool last_motion_known_ = false;  ///< ... unless that was the first
   std::size_t evicted_total_ = 0;
   // The submap (cubes around the robot) and its search trees, ready before the frame that needs them.
   Cloud submap_corners_, submap_surfs_;
@@ -287,6 +307,13 @@ private:
   static bool recall(SearchMemo* memo, const Point& query, Search&& search);
 
   MatchSolveResult solve(Pose& pose, int outer_iterations, MappingResult& result);
+  /// Whether the frame's motion differs enough from the previous frame's for solveSpan().
+  bool motionChanged(const OdometryFrame& frame) const;
+  /// Solves the sweep's start and end rotation (SweepSpan) from the solved end `pose` and the previous
+  /// sweep's end (from `prediction`), re-deskews the downsampled clouds with that motion and turns `pose` to
+  /// the new end. False (nothing changed) when the sweep does not follow the previous one, is not deskewed,
+  /// or the solve fails or runs off.
+  bool solveSpan(const OdometryFrame& frame, const Pose& prediction, Pose& pose);
   /// The k nearest map points of `query` within the radius; with `memo`, its slack is recorded too.
   static bool fitNeighbours(const KdTree& tree, const Cloud& cloud, const Point& query, int k, double max_sq_distance,
                             Neighbourhood& fit, SearchMemo* memo = nullptr);

@@ -1,0 +1,65 @@
+// A sweep as a motion rather than one pose: a start and an end pose, with the sensor moving between them at
+// constant velocity (CT-ICP's model). Mapping solves the two rotations for sweeps in which the motion
+// changed, whose deskewing with one motion was wrong; the translations stay as given.
+#pragma once
+
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "aloam_nodelet/core/lidar_factors.h"
+#include "aloam_nodelet/core/pose.h"
+
+namespace aloam
+{
+/// The rotation a fraction `s` of the way from `a` to `b`: the normalized blend (nlerp) of the two unit
+/// quaternions on the same hemisphere, within a few thousandths of a degree of slerp over a sweep's turn.
+template <typename T>
+Eigen::Quaternion<T> blendRotation(const Eigen::Quaternion<T>& a, const Eigen::Quaternion<T>& b, const T& s)
+{
+  const T sign = a.coeffs().dot(b.coeffs()) < T(0) ? T(-1) : T(1);
+  Eigen::Quaternion<T> q;
+  q.coeffs() = (T(1) - s) * a.coeffs() + s * sign * b.coeffs();
+  q.normalize();
+  return q;
+}
+
+/// The sensor's poses at the start and the end of a sweep (map <- sensor).
+struct SweepSpan
+{
+  Pose start, end;
+
+  /// The pose at fraction `s` of the sweep (0: start, 1: end).
+  Pose at(double s) const { return Pose(blendRotation(start.q, end.q, s), (1.0 - s) * start.t + s * end.t); }
+};
+
+/// A match of a point taken at fraction `s` of the sweep; `point` in the sensor frame of that instant.
+struct SpanLineMatch
+{
+  LineMatch match;
+  double s = 1.0;
+};
+struct SpanPlaneMatch
+{
+  PlaneMatch match;
+  double s = 1.0;
+};
+
+struct SweepSpanOptions
+{
+  int max_iterations = 4;
+  double huber_delta = 0.1;  ///< Huber loss scale of the matches (m); <= 0: none
+  /// The start's rotation is held to `start_prior` (where the previous sweep ended) as strongly as this
+  /// many point matches a lever_arm away would hold it.
+  double start_weight = 3.0;
+  double lever_arm = 10.0;
+};
+
+/// Solves the start and end rotations of `span` under the matches and the start's prior; its translations
+/// stay (in a corridor the one along the axis would wander with nothing to hold it, where the pose solve of
+/// the whole sweep kept the prediction). Ceres with automatic differentiation, on the calling thread so
+/// that the result does not depend on threads. Returns false when the solve failed (span unchanged).
+bool solveSweepSpan(SweepSpan& span, const std::vector<SpanLineMatch>& lines, const std::vector<SpanPlaneMatch>& planes,
+                    const Eigen::Quaterniond& start_prior, const SweepSpanOptions& options);
+
+}  // namespace aloam

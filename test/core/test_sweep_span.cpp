@@ -1,0 +1,120 @@
+// The sweep-span solve (a start and an end rotation per sweep): it recovers a turn within the sweep, keeps
+// the translations it is given, and its start prior holds the start as strongly as it is told to.
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "aloam_nodelet/core/sweep_span.h"
+
+namespace aloam
+{
+namespace
+{
+constexpr int kPointsPerPlane = 60;
+constexpr double kTruthTurnDeg = 6.0;      // the sensor turns this much over the sweep (60 deg/s at 10 Hz)
+constexpr double kStartOffDeg = 2.0;       // the initial end, and in one test the prior, are this far off
+constexpr double kRecoveredDeg = 1e-3;     // exact data: the solve recovers the truth to rounding
+constexpr double kFreeStartMaxDeg = 0.05;  // without a prior the start follows the matches ...
+constexpr double kHeldStartMaxDeg = 0.05;  // ... with a strong one it stays at the prior
+
+double deg(double rad)
+{
+  return rad * 180.0 / M_PI;
+}
+
+Pose yawPose(double yaw_deg, const Eigen::Vector3d& t)
+{
+  return Pose(Eigen::Quaterniond(Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitZ())), t);
+}
+
+// Points on the planes of a room (floor, ceiling, walls at different distances, two slanted panels), each
+// taken at a random fraction of a sweep along `truth` and matched to its plane: exact plane matches.
+std::vector<SpanPlaneMatch> roomMatches(const SweepSpan& truth)
+{
+  struct Plane
+  {
+    Eigen::Vector3d n;
+    double d;
+  };
+  const std::vector<Plane> planes = {
+    { Eigen::Vector3d::UnitZ(), 1.5 },
+    { -Eigen::Vector3d::UnitZ(), 1.5 },
+    { Eigen::Vector3d::UnitX(), 4.0 },
+    { -Eigen::Vector3d::UnitX(), 7.0 },
+    { Eigen::Vector3d::UnitY(), 2.5 },
+    { -Eigen::Vector3d::UnitY(), 3.0 },
+    { Eigen::Vector3d(1, 1, 0).normalized(), 5.0 },
+    { Eigen::Vector3d(1, -1, 1).normalized(), 6.0 },
+  };
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> unit(0.0, 1.0), spread(-2.0, 2.0);
+  std::vector<SpanPlaneMatch> out;
+  for (const Plane& plane : planes)
+  {
+    // Two directions within the plane.
+    const Eigen::Vector3d u = plane.n.unitOrthogonal(), v = plane.n.cross(u);
+    for (int i = 0; i < kPointsPerPlane; ++i)
+    {
+      const Eigen::Vector3d world = -plane.d * plane.n + spread(rng) * u + spread(rng) * v;
+      SpanPlaneMatch m;
+      m.s = unit(rng);
+      m.match = PlaneMatch{ truth.at(m.s).inverse() * world, plane.n, plane.d };
+      out.push_back(m);
+    }
+  }
+  return out;
+}
+}  // namespace
+
+TEST(SweepSpan, RecoversATurnWithinTheSweep)
+{
+  const SweepSpan truth{ Pose(), yawPose(kTruthTurnDeg, Eigen::Vector3d(0.14, 0.02, 0.0)) };
+  const std::vector<SpanPlaneMatch> planes = roomMatches(truth);
+  SweepSpan span{ truth.start, yawPose(kTruthTurnDeg - kStartOffDeg, truth.end.t) };
+  SweepSpanOptions options;
+  options.max_iterations = 20;
+  options.huber_delta = 0.0;
+  ASSERT_TRUE(solveSweepSpan(span, {}, planes, truth.start.q, options));
+  EXPECT_LT(deg(span.end.q.angularDistance(truth.end.q)), kRecoveredDeg);
+  EXPECT_LT(deg(span.start.q.angularDistance(truth.start.q)), kRecoveredDeg);
+  EXPECT_EQ(span.end.t, truth.end.t);  // translations are given, not solved
+  EXPECT_EQ(span.start.t, truth.start.t);
+}
+
+TEST(SweepSpan, StartPriorHoldsTheStartAsToldTo)
+{
+  const SweepSpan truth{ Pose(), yawPose(kTruthTurnDeg, Eigen::Vector3d(0.14, 0.0, 0.0)) };
+  const std::vector<SpanPlaneMatch> planes = roomMatches(truth);
+  const Pose wrong_prior = yawPose(kStartOffDeg, Eigen::Vector3d::Zero());
+  SweepSpanOptions options;
+  options.max_iterations = 20;
+  options.huber_delta = 0.0;
+
+  options.start_weight = 0.0;  // the matches alone decide
+  SweepSpan free_start{ wrong_prior, truth.end };
+  ASSERT_TRUE(solveSweepSpan(free_start, {}, planes, wrong_prior.q, options));
+  EXPECT_LT(deg(free_start.start.q.angularDistance(truth.start.q)), kFreeStartMaxDeg);
+
+  options.start_weight = 1e9;  // the prior decides the start, the matches the end
+  SweepSpan held{ wrong_prior, truth.end };
+  ASSERT_TRUE(solveSweepSpan(held, {}, planes, wrong_prior.q, options));
+  EXPECT_LT(deg(held.start.q.angularDistance(wrong_prior.q)), kHeldStartMaxDeg);
+  EXPECT_GT(deg(held.end.q.angularDistance(truth.end.q)), kFreeStartMaxDeg);  // a wrong start bends the end
+}
+
+TEST(SweepSpan, BlendedRotationRunsFromStartToEnd)
+{
+  const SweepSpan span{ yawPose(10.0, Eigen::Vector3d(1, 2, 3)), yawPose(22.0, Eigen::Vector3d(3, 2, 1)) };
+  EXPECT_LT(deg(span.at(0.0).q.angularDistance(span.start.q)), 1e-9);
+  EXPECT_LT(deg(span.at(1.0).q.angularDistance(span.end.q)), 1e-9);
+  EXPECT_NEAR(deg(span.at(0.5).q.angularDistance(span.start.q)), 6.0, 1e-9);  // symmetric: nlerp's midpoint is slerp's
+  EXPECT_LT((span.at(0.25).t - Eigen::Vector3d(1.5, 2, 2.5)).norm(), 1e-12);
+  // The opposite sign of the same end rotation blends the same way.
+  SweepSpan flipped = span;
+  flipped.end.q.coeffs() = -flipped.end.q.coeffs();
+  EXPECT_LT(deg(flipped.at(0.3).q.angularDistance(span.at(0.3).q)), 1e-9);
+}
+
+}  // namespace aloam
