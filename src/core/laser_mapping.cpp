@@ -21,7 +21,8 @@ Eigen::Vector3d vec(const Point& p)
 
 // Sweeps follow each other when their stamps are a scan period apart within this share of it.
 constexpr double kContiguousTolerance = 0.05;
-// A span solve whose end turned farther than this from the rigid solve's ran off (rad).
+// A span solve whose end moved or turned farther than these from the rigid solve's ran off (m, rad).
+constexpr double kMaxSpanShift = 1.0;
 constexpr double kMaxSpanTurn = 10.0 * M_PI / 180.0;
 // Points per chunk of the span solve's correspondence search.
 constexpr int kMinChunk = 256;
@@ -365,10 +366,9 @@ bool LaserMapping::solveSpan(const OdometryFrame& frame, const Pose& prediction,
 {
   const Pose& used = frame.full_motion;  // sweep start <- end, as odometry deskewed the clouds
   const double period = frame.scan_period;
-  if (used.isIdentity() || !(period > 0.0) || !(frame.dt > 0.0) ||
-      std::fabs(frame.dt / period - 1.0) > kContiguousTolerance || frame.status == OdometryStatus::kInitialized)
+  if (used.isIdentity() || !(period > 0.0) || !(frame.dt > 0.0) || frame.status == OdometryStatus::kInitialized)
   {
-    return false;  // not deskewed, or the previous sweep did not end where this one started
+    return false;  // not deskewed
   }
   // Each point back where the sensor was when it took it, and when that was (fraction of the sweep).
   std::vector<Point> points;
@@ -386,7 +386,13 @@ bool LaserMapping::solveSpan(const OdometryFrame& frame, const Pose& prediction,
   const int corners = static_cast<int>(corner_stack_.size());
   const int total = static_cast<int>(points.size());
 
-  const Pose start_prior = prediction * frame.motion.inverse();
+  // Where the sweep started: where the previous one ended, or, when sweeps were dropped between them (a
+  // throttled topic), a sweep's time before the end on the way from there to the solved end.
+  const Pose previous_end = prediction * frame.motion.inverse();
+  const double share = period / frame.dt;  // the sweep's part of the stamp-to-stamp motion
+  const Pose start_prior = share > 1.0 - kContiguousTolerance
+                               ? previous_end
+                               : previous_end * (previous_end.inverse() * pose).scaled(1.0 - share);
   SweepSpan span{ start_prior, pose };
   SweepSpanOptions options;
   options.max_iterations = config_.max_iterations;
@@ -426,12 +432,12 @@ bool LaserMapping::solveSpan(const OdometryFrame& frame, const Pose& prediction,
       }
     }
     if (static_cast<int>(lines.size() + planes.size()) < config_.min_correspondences ||
-        !solveSweepSpan(span, lines, planes, start_prior.q, options))
+        !solveSweepSpan(span, lines, planes, start_prior, options))
     {
       return false;
     }
   }
-  if (span.end.q.angularDistance(pose.q) > kMaxSpanTurn)
+  if ((span.end.t - pose.t).norm() > kMaxSpanShift || span.end.q.angularDistance(pose.q) > kMaxSpanTurn)
   {
     return false;  // a solve that ran off: keep the rigid one
   }

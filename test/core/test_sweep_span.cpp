@@ -1,5 +1,6 @@
-// The sweep-span solve (a start and an end rotation per sweep): it recovers a turn within the sweep, keeps
-// the translations it is given, and its start prior holds the start as strongly as it is told to.
+// The sweep-span solve (a start and an end pose per sweep): it recovers a motion within the sweep (or only
+// the rotations, keeping the translations it is given), and its start prior holds the start as strongly
+// as it is told to.
 #include <cmath>
 #include <random>
 #include <vector>
@@ -13,9 +14,10 @@ namespace aloam
 namespace
 {
 constexpr int kPointsPerPlane = 60;
-constexpr double kTruthTurnDeg = 6.0;      // the sensor turns this much over the sweep (60 deg/s at 10 Hz)
-constexpr double kStartOffDeg = 2.0;       // the initial end, and in one test the prior, are this far off
-constexpr double kRecoveredDeg = 1e-3;     // exact data: the solve recovers the truth to rounding
+constexpr double kTruthTurnDeg = 6.0;   // the sensor turns this much over the sweep (60 deg/s at 10 Hz)
+constexpr double kStartOffDeg = 2.0;    // the initial end, and in one test the prior, are this far off
+constexpr double kRecoveredDeg = 1e-3;  // exact data: the solve recovers the truth to rounding
+constexpr double kRecoveredMetres = 1e-4;
 constexpr double kFreeStartMaxDeg = 0.05;  // without a prior the start follows the matches ...
 constexpr double kHeldStartMaxDeg = 0.05;  // ... with a strong one it stays at the prior
 
@@ -72,15 +74,22 @@ TEST(SweepSpan, RecoversATurnWithinTheSweep)
 {
   const SweepSpan truth{ Pose(), yawPose(kTruthTurnDeg, Eigen::Vector3d(0.14, 0.02, 0.0)) };
   const std::vector<SpanPlaneMatch> planes = roomMatches(truth);
-  SweepSpan span{ truth.start, yawPose(kTruthTurnDeg - kStartOffDeg, truth.end.t) };
   SweepSpanOptions options;
   options.max_iterations = 20;
   options.huber_delta = 0.0;
-  ASSERT_TRUE(solveSweepSpan(span, {}, planes, truth.start.q, options));
+  SweepSpan span{ truth.start, yawPose(kTruthTurnDeg - kStartOffDeg, Eigen::Vector3d(0.1, 0.0, 0.0)) };
+  ASSERT_TRUE(solveSweepSpan(span, {}, planes, truth.start, options));
   EXPECT_LT(deg(span.end.q.angularDistance(truth.end.q)), kRecoveredDeg);
+  EXPECT_LT((span.end.t - truth.end.t).norm(), kRecoveredMetres);
   EXPECT_LT(deg(span.start.q.angularDistance(truth.start.q)), kRecoveredDeg);
-  EXPECT_EQ(span.end.t, truth.end.t);  // translations are given, not solved
-  EXPECT_EQ(span.start.t, truth.start.t);
+
+  // Rotations only: the translations stay as given.
+  options.solve_translation = false;
+  SweepSpan turned{ truth.start, yawPose(kTruthTurnDeg - kStartOffDeg, truth.end.t) };
+  ASSERT_TRUE(solveSweepSpan(turned, {}, planes, truth.start, options));
+  EXPECT_LT(deg(turned.end.q.angularDistance(truth.end.q)), kRecoveredDeg);
+  EXPECT_EQ(turned.end.t, truth.end.t);
+  EXPECT_EQ(turned.start.t, truth.start.t);
 }
 
 TEST(SweepSpan, StartPriorHoldsTheStartAsToldTo)
@@ -94,12 +103,12 @@ TEST(SweepSpan, StartPriorHoldsTheStartAsToldTo)
 
   options.start_weight = 0.0;  // the matches alone decide
   SweepSpan free_start{ wrong_prior, truth.end };
-  ASSERT_TRUE(solveSweepSpan(free_start, {}, planes, wrong_prior.q, options));
+  ASSERT_TRUE(solveSweepSpan(free_start, {}, planes, wrong_prior, options));
   EXPECT_LT(deg(free_start.start.q.angularDistance(truth.start.q)), kFreeStartMaxDeg);
 
   options.start_weight = 1e9;  // the prior decides the start, the matches the end
   SweepSpan held{ wrong_prior, truth.end };
-  ASSERT_TRUE(solveSweepSpan(held, {}, planes, wrong_prior.q, options));
+  ASSERT_TRUE(solveSweepSpan(held, {}, planes, wrong_prior, options));
   EXPECT_LT(deg(held.start.q.angularDistance(wrong_prior.q)), kHeldStartMaxDeg);
   EXPECT_GT(deg(held.end.q.angularDistance(truth.end.q)), kFreeStartMaxDeg);  // a wrong start bends the end
 }

@@ -53,10 +53,10 @@ struct LaserMappingConfig
   bool reuse_searches = true;
   /// A sweep in which the motion changed (odometry's motion differs from the previous sweep's by more than
   /// span_motion_change_deg or span_motion_change_m) was deskewed with a motion that is wrong within it:
-  /// after the rigid solve, mapping solves its start and end rotation (SweepSpan; the translation runs from
-  /// the previous sweep's end to the rigid solve's), the start held to where the previous sweep ended by
-  /// span_start_weight, and re-deskews the sweep with that motion before it enters the map. Only with
-  /// deskewing and sweeps that follow each other; false: one pose per sweep (A-LOAM).
+  /// after the rigid solve, mapping solves its start and end pose (SweepSpan, constant velocity between
+  /// them), the start held to where the sensor was a sweep before (on the path from the previous sweep's
+  /// end) by span_start_weight, and re-deskews the sweep with that motion before it enters the map. Only
+  /// with deskewing; false: one pose per sweep (A-LOAM).
   bool sweep_span = true;
   double span_motion_change_deg = 1.0;
   double span_motion_change_m = 0.05;
@@ -65,8 +65,8 @@ struct LaserMappingConfig
   double span_start_weight = 3.0;
   int span_iterations = 2;  ///< correspondence searches of the span solve
   /// Only sweeps whose rigid solve pinned every direction at least this well (constraint, as min_constraint)
-  /// are spanned: the span has no handling of weak directions, and in corridors its rotations wandered where
-  /// the rigid solve held the weak ones (docs/accuracy.md, "The sweep span").
+  /// are spanned: the span has no handling of weak directions, and in corridors it wandered along the axis
+  /// where the rigid solve held the weak directions (docs/accuracy.md, "The sweep span").
   double span_min_constraint = 100.0;
   int line_neighbours = 5;  ///< map points fitted per edge point (A-LOAM: 5)
   /// Farthest fitted neighbour (m^2), lines and planes. A-LOAM uses 1 m^2; with 0.8 m plane voxels five
@@ -309,10 +309,9 @@ private:
   MatchSolveResult solve(Pose& pose, int outer_iterations, MappingResult& result);
   /// Whether the frame's motion differs enough from the previous frame's for solveSpan().
   bool motionChanged(const OdometryFrame& frame) const;
-  /// Solves the sweep's start and end rotation (SweepSpan) from the solved end `pose` and the previous
-  /// sweep's end (from `prediction`), re-deskews the downsampled clouds with that motion and turns `pose` to
-  /// the new end. False (nothing changed) when the sweep does not follow the previous one, is not deskewed,
-  /// or the solve fails or runs off.
+  /// Solves the sweep's start and end pose (SweepSpan) from the solved end `pose` and the previous sweep's
+  /// end (from `prediction`), re-deskews the downsampled clouds with that motion and moves `pose` to the
+  /// new end. False (nothing changed) when the sweep is not deskewed, or the solve fails or runs off.
   bool solveSpan(const OdometryFrame& frame, const Pose& prediction, Pose& pose);
   /// The k nearest map points of `query` within the radius; with `memo`, its slack is recorded too.
   static bool fitNeighbours(const KdTree& tree, const Cloud& cloud, const Point& query, int k, double max_sq_distance,

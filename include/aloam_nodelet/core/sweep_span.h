@@ -1,6 +1,6 @@
 // A sweep as a motion rather than one pose: a start and an end pose, with the sensor moving between them at
-// constant velocity (CT-ICP's model). Mapping solves the two rotations for sweeps in which the motion
-// changed, whose deskewing with one motion was wrong; the translations stay as given.
+// constant velocity (CT-ICP's model). Mapping solves both for sweeps in which the motion changed, whose
+// deskewing with one motion was wrong.
 #pragma once
 
 #include <vector>
@@ -49,17 +49,19 @@ struct SweepSpanOptions
 {
   int max_iterations = 4;
   double huber_delta = 0.1;  ///< Huber loss scale of the matches (m); <= 0: none
-  /// The start's rotation is held to `start_prior` (where the previous sweep ended) as strongly as this
-  /// many point matches a lever_arm away would hold it.
+  /// The start is held to `start_prior` (where the previous sweep ended) as strongly as this many point
+  /// matches would hold it; rotations count as the motion of a point lever_arm away.
   double start_weight = 3.0;
   double lever_arm = 10.0;
+  /// Solve the translations too (the start's held to the prior's like its rotation); false: they stay.
+  bool solve_translation = true;
 };
 
-/// Solves the start and end rotations of `span` under the matches and the start's prior; its translations
-/// stay (in a corridor the one along the axis would wander with nothing to hold it, where the pose solve of
-/// the whole sweep kept the prediction). Ceres with automatic differentiation, on the calling thread so
-/// that the result does not depend on threads. Returns false when the solve failed (span unchanged).
+/// Solves the start and end poses of `span` under the matches and the start's prior. No handling of weak
+/// directions: along one the span wanders (mapping spans only strongly constrained sweeps). Ceres with
+/// automatic differentiation, on the calling thread so that the result does not depend on threads.
+/// Returns false when the solve failed (span unchanged).
 bool solveSweepSpan(SweepSpan& span, const std::vector<SpanLineMatch>& lines, const std::vector<SpanPlaneMatch>& planes,
-                    const Eigen::Quaterniond& start_prior, const SweepSpanOptions& options);
+                    const Pose& start_prior, const SweepSpanOptions& options);
 
 }  // namespace aloam
