@@ -34,6 +34,27 @@ double rotationAngle(const Eigen::Matrix4d& pose)
   return std::acos(std::max(-1.0, std::min(1.0, d)));
 }
 
+// Frames in a fast turn (EvalOptions::skip_turns_deg): the yaw step from the frame before exceeds the
+// threshold, or did so at most `settle` frames earlier. All false when the threshold is 0.
+std::vector<bool> turnFrames(const std::vector<Eigen::Matrix4d>& poses, double threshold_deg, std::size_t settle)
+{
+  std::vector<bool> turning(poses.size(), false);
+  if (!(threshold_deg > 0.0))
+  {
+    return turning;
+  }
+  for (std::size_t i = 1; i < poses.size(); ++i)
+  {
+    const Eigen::Matrix4d step = poses[i - 1].inverse() * poses[i];
+    if (std::fabs(std::atan2(step(1, 0), step(0, 0))) * kRadToDeg > threshold_deg)
+    {
+      std::fill(turning.begin() + static_cast<std::ptrdiff_t>(i),
+                turning.begin() + static_cast<std::ptrdiff_t>(std::min(poses.size(), i + settle + 1)), true);
+    }
+  }
+  return turning;
+}
+
 Eigen::Isometry3d toIsometry(const Eigen::Matrix4d& m)
 {
   Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
@@ -67,6 +88,10 @@ EvalResult evaluate(const Trajectory& gt, const Trajectory& est, const EvalOptio
       throw std::invalid_argument("evaluate: segment lengths must be positive and finite");
     }
   }
+  if (!(options.skip_turns_deg >= 0.0) || !std::isfinite(options.skip_turns_deg))
+  {
+    throw std::invalid_argument("evaluate: skip_turns_deg must be non-negative and finite");
+  }
 
   const std::size_t n = gt.size() - options.start;
   std::vector<Eigen::Matrix4d> gt_m(n);
@@ -82,6 +107,7 @@ EvalResult evaluate(const Trajectory& gt, const Trajectory& est, const EvalOptio
 
   // Segment drift.
   const std::vector<double> dist = pathDistances(gt_m);
+  const std::vector<bool> turning = turnFrames(gt_m, options.skip_turns_deg, options.turn_settle_frames);
   const std::size_t num_lengths = options.segment_lengths.size();
   std::vector<double> t_sums(num_lengths, 0.0);
   std::vector<double> r_sums(num_lengths, 0.0);
@@ -103,6 +129,10 @@ EvalResult evaluate(const Trajectory& gt, const Trajectory& est, const EvalOptio
         continue;
       }
       const std::size_t last = static_cast<std::size_t>(it - dist.begin());
+      if (turning[first] || turning[last])
+      {
+        continue;
+      }
       const Eigen::Matrix4d delta_gt = gt_first_inv * gt_m[last];
       const Eigen::Matrix4d delta_est = est_first_inv * est_m[last];
       const Eigen::Matrix4d error = delta_est.inverse() * delta_gt;

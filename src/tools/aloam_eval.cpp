@@ -35,7 +35,7 @@ struct Arguments
 void printUsage(std::ostream& out)
 {
   out << "Usage: aloam_eval --gt GT.txt --trajectory EST.txt [--calib calib.txt] [--start N]\n"
-         "                  [--segments L1,L2,...] [--step K]\n"
+         "                  [--segments L1,L2,...] [--step K] [--skip-turns DEG]\n"
          "\n"
          "Evaluates an estimated lidar trajectory (KITTI pose file, poses relative to the first frame)\n"
          "against ground truth: KITTI segment drift (devkit definition) and ATE after rigid alignment.\n"
@@ -48,6 +48,8 @@ void printUsage(std::ostream& out)
          "  --start N          first frame to evaluate (default 0).\n"
          "  --segments LIST    comma-separated segment lengths in metres (default 100,...,800).\n"
          "  --step K           stride between segment start frames (default 1).\n"
+         "  --skip-turns DEG   leave out segments that start or end in a fast turn: a frame whose true yaw\n"
+         "                     changed by more than DEG degrees since the frame before, and the 3 after it.\n"
          "  --help             print this message.\n"
          "\n"
          "If the files differ in length, their common prefix is evaluated (with a warning).\n";
@@ -127,6 +129,17 @@ bool parseArguments(int argc, char** argv, Arguments& args, std::string& error)
         return false;
       }
     }
+    else if (flag == "--skip-turns")
+    {
+      char* end = nullptr;
+      const double degrees = std::strtod(value.c_str(), &end);
+      if (value.empty() || *end != '\0' || !(degrees >= 0.0) || !std::isfinite(degrees))
+      {
+        error = "invalid --skip-turns '" + value + "' (expected a non-negative number of degrees)";
+        return false;
+      }
+      args.options.skip_turns_deg = degrees;
+    }
     else if (flag == "--segments")
     {
       if (!parseLengths(value, args.options.segment_lengths))
@@ -156,7 +169,8 @@ void printReport(const Arguments& args, const aloam::eval::EvalResult& result, s
   std::printf("trajectory   : %s\n", args.trajectory_path.c_str());
   std::printf("frames evaluated: %zu (frames %zu..%zu of %zu)\n", result.frames, args.options.start, total_frames - 1,
               total_frames);
-  std::printf("segments: %zu (step %zu)\n", result.segments, args.options.step);
+  std::printf("segments: %zu (step %zu)%s\n", result.segments, args.options.step,
+              args.options.skip_turns_deg > 0.0 ? ", segments ending in fast turns left out" : "");
   std::printf("%10s %8s %12s %16s\n", "length_m", "count", "t_err_%", "r_err_deg/100m");
   for (const aloam::eval::LengthStats& stats : result.per_length)
   {

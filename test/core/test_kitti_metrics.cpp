@@ -248,6 +248,38 @@ TEST(KittiMetrics, ConstantYawBiasGivesExpectedRotationError)
   EXPECT_GT(result.translation_drift_percent, 0.0);
 }
 
+// A drive with one 60 deg turn in two 30 deg steps, estimated 2 deg late in the turn and right after it:
+// the error lives only in the turn and the frames just after, which skip_turns_deg leaves out.
+TEST(KittiMetrics, SkipTurnsLeavesOutSegmentsEndingInATurn)
+{
+  const std::size_t frames = 60;
+  const std::size_t turn = 30;  // frames 30 and 31 turn by 30 deg each
+  Trajectory gt;
+  Trajectory est;
+  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
+  for (std::size_t i = 0; i < frames; ++i)
+  {
+    const bool turning = i == turn || i == turn + 1;
+    pose = pose * makePose(Eigen::Vector3d(1.0, 0.0, 0.0), turning ? 30.0 / kRadToDeg : 0.0);
+    gt.push_back(pose);
+    const bool late = i >= turn && i <= turn + 2;
+    est.push_back(late ? pose * makePose(Eigen::Vector3d::Zero(), -2.0 / kRadToDeg) : pose);
+  }
+  EvalOptions options = shortSegments({ 5, 10 });
+  const EvalResult every = evaluate(gt, est, options);
+  options.skip_turns_deg = 3.0;
+  const EvalResult steady = evaluate(gt, est, options);
+  EXPECT_GT(every.rotation_deg_per_100m, 1.0);
+  EXPECT_NEAR(steady.rotation_deg_per_100m, 0.0, 1e-9);
+  // Segments starting or ending at frames 30..34 (the two turn frames and 3 after the last) are out.
+  EXPECT_LT(steady.segments, every.segments);
+  EXPECT_GE(steady.segments + 2 * 2 * 5, every.segments);  // at most 5 starts and 5 ends per length
+  options.skip_turns_deg = 40.0;                           // no step turns that far: every segment stays
+  EXPECT_EQ(evaluate(gt, est, options).segments, every.segments);
+  options.skip_turns_deg = -1.0;
+  EXPECT_THROW(evaluate(gt, est, options), std::invalid_argument);
+}
+
 TEST(KittiMetrics, NoSegmentFitsGivesNanWithoutThrowing)
 {
   const Trajectory gt = straightLine(20, 1.0);

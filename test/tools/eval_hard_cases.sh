@@ -13,7 +13,7 @@
 #
 # Columns: ATE (m, after rigid alignment, aloam_eval), translation drift (%) and rotation drift
 # (deg/100 m) over the case's segment lengths; the rotation drift over the segments whose two ends lie
-# outside fast turns (a true yaw step above 3 deg and the 3 sweeps after: hard_case_metrics.py bursts);
+# outside fast turns (a true yaw step above 3 deg and the 3 sweeps after: aloam_eval --skip-turns 3);
 # the largest heading (yaw) error without alignment (deg); the 90th percentile of the rotation error of
 # single sweep-to-sweep steps (deg); and how many estimated steps move against the true step (dot
 # product < 0) among the true steps longer than 5 cm. frames / period_s are the published sweeps and the
@@ -45,6 +45,12 @@ case_table=(
   "office_os0         office handheld_turn   OS0_64 18 1 5,10,20"
 )
 
+# steady_rotation RUN MODE SEGMENTS: rotation drift of RUN/MODE.txt over the segments outside fast turns.
+steady_rotation() {
+  "$bin/aloam_eval" --gt "$1/gt.txt" --trajectory "$1/$2.txt" --segments "$3" --skip-turns 3 >"$1/$2.steady.txt" 2>&1
+  figure rotation_deg_per_100m "$1/$2.steady.txt"
+}
+
 results="$out/results.txt"
 header=$(printf "%-20s %4s %6s %8s %8s %9s %12s %10s %11s %13s %9s %11s %10s %12s" case seed frames period_s ate_m \
   drift_% "rot_deg/100m" rot_steady max_head_deg step_rot_p90 backward aloam_ate_m aloam_rot aloam_steady)
@@ -73,18 +79,16 @@ for row in "${case_table[@]}"; do
     if [ $with_peer = 1 ]; then
       if run_peer "$run" aloam "$sensor" "$segments" >/dev/null; then
         peer_ate=$(figure ate_rmse_m "$run/aloam.eval.txt") peer_rot=$(figure rotation_deg_per_100m "$run/aloam.eval.txt")
-        python3 "$hard_case_metrics" bursts "$run/gt.txt" "$run/aloam.txt" "$segments" >"$run/aloam.bursts.txt" 2>&1
-        peer_steady=$(field rot_steady "$run/aloam.bursts.txt")
+        peer_steady=$(steady_rotation "$run" aloam "$segments")
       else
         peer_ate=- peer_rot=- peer_steady=-
       fi
     fi
     [ "${KEEP_BAGS:-0}" = 1 ] || rm -rf "$run/sim.bag" "$run/kitti"
-    python3 "$hard_case_metrics" bursts "$run/gt.txt" "$run/est.txt" "$segments" >"$run/est.bursts.txt" 2>&1
     printf "%-20s %4s %6s %8s %8s %9s %12s %10s %11s %13s %9s %11s %10s %12s\n" "$name" "$seed" "$(field frames "$run/gt_info.txt")" \
       "$(field period_s "$run/gt_info.txt")" "$(figure ate_rmse_m "$run/est.eval.txt")" \
       "$(figure translation_drift_percent "$run/est.eval.txt")" "$(figure rotation_deg_per_100m "$run/est.eval.txt")" \
-      "$(field rot_steady "$run/est.bursts.txt")" "$(field max_heading_deg "$run/est.compare.txt")" \
+      "$(steady_rotation "$run" est "$segments")" "$(field max_heading_deg "$run/est.compare.txt")" \
       "$(field step_rot_p90_deg "$run/est.compare.txt")" \
       "$(field backward_steps "$run/est.compare.txt")/$(field of "$run/est.compare.txt")" "$peer_ate" "$peer_rot" \
       "$peer_steady" |

@@ -12,11 +12,6 @@
       them); and the 90th percentile and largest rotation error of a single step (sweep to sweep), which
       short-lived heading errors (a yaw burst's first sweeps) dominate while the drift over segments
       averages them with the steady stretches.
-  hard_case_metrics.py bursts GT.txt EST.txt SEGMENTS
-      Rotation drift (deg/100 m, KITTI-style: every start sweep, segments of the comma-separated SEGMENTS
-      metres of true path) over all segments and over the segments whose two ends lie outside yaw bursts
-      (a true yaw step above BURST_STEP_DEG and the BURST_AFTER sweeps after it): `rot_all R N rot_steady
-      S M` (N, M: segment counts). The gap between them is what the bursts' short-lived errors add.
 """
 import math
 import os
@@ -29,8 +24,6 @@ sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."
 from aloam_poses import quat_to_rot, read_kitti, write_kitti  # noqa: E402
 
 MIN_STEP_M = 0.05
-BURST_STEP_DEG = 3.0
-BURST_AFTER = 3
 
 
 def pose_to_matrix(pose):
@@ -93,39 +86,11 @@ def rotation_deg(m):
     return math.degrees(math.acos(max(-1.0, min(1.0, (np.trace(m[:3, :3]) - 1.0) / 2.0))))
 
 
-def bursts(gt_path, est_path, segments):
-    gt, est = read_kitti(gt_path), read_kitti(est_path)
-    n = min(len(gt), len(est))
-    path = np.concatenate([[0.0], np.cumsum([np.linalg.norm(gt[i + 1][:3, 3] - gt[i][:3, 3]) for i in range(n - 1)])])
-    burst = [False] * n
-    for i in range(1, n):
-        if abs(math.degrees(yaw(np.linalg.inv(gt[i - 1]) @ gt[i]))) > BURST_STEP_DEG:
-            for j in range(i, min(n, i + BURST_AFTER + 1)):
-                burst[j] = True
-    every, steady = [], []
-    for length in segments:
-        for i in range(n):
-            j = int(np.searchsorted(path, path[i] + length))
-            if j >= n:
-                break
-            error = np.linalg.inv(np.linalg.inv(gt[i]) @ gt[j]) @ np.linalg.inv(est[i]) @ est[j]
-            drift = rotation_deg(error) / length * 100.0
-            every.append(drift)
-            if not burst[i] and not burst[j]:
-                steady.append(drift)
-    def mean(values):
-        return float(np.mean(values)) if values else float("nan")
-
-    print("rot_all %.2f %d rot_steady %.2f %d" % (mean(every), len(every), mean(steady), len(steady)))
-
-
 def main():
     if len(sys.argv) == 4 and sys.argv[1] == "gt":
         ground_truth(sys.argv[2], sys.argv[3])
     elif len(sys.argv) == 4 and sys.argv[1] == "compare":
         compare(sys.argv[2], sys.argv[3])
-    elif len(sys.argv) == 5 and sys.argv[1] == "bursts":
-        bursts(sys.argv[2], sys.argv[3], [float(x) for x in sys.argv[4].split(",")])
     else:
         sys.exit(__doc__)
 

@@ -24,6 +24,11 @@ struct EvalOptions
   std::vector<double> segment_lengths{ 100.0, 200.0, 300.0, 400.0, 500.0, 600.0, 700.0, 800.0 };
   /// Stride between the first frames of segments (the devkit uses 10, one per second at 10 Hz). >= 1.
   std::size_t step = 1;
+  /// > 0: segments that start or end in a fast turn are left out of the drift: a frame whose ground-truth
+  /// yaw changed by more than this many degrees since the frame before, and the `turn_settle_frames` after
+  /// it. Shows the drift a trajectory keeps once its turns are over (yaw bursts). 0: every segment.
+  double skip_turns_deg = 0.0;
+  std::size_t turn_settle_frames = 3;
 };
 
 /// Mean errors of all segments of one nominal length (NaN when count == 0).
@@ -59,8 +64,8 @@ struct EvalResult
 /// first frame is strictly greater than L (segments without one are skipped);
 /// error = (est_first^-1 * est_last)^-1 * (gt_first^-1 * gt_last); t_err = |t(error)| / L and
 /// r_err = acos(clamp((trace(R(error)) - 1) / 2)) / L. Matrices are inverted as general 4x4 matrices,
-/// as the devkit does. Throws std::invalid_argument on different lengths, fewer than 2 frames from
-/// `start` on, step == 0 or a non-positive segment length.
+/// as the devkit does. With `skip_turns_deg` some segments are left out (EvalOptions). Throws std::invalid_argument on
+/// different lengths, fewer than 2 frames from `start` on, step == 0 or a non-positive segment length.
 EvalResult evaluate(const Trajectory& gt, const Trajectory& est, const EvalOptions& options = EvalOptions());
 
 /// Converts KITTI camera-0 poses into lidar poses relative to the first frame's lidar pose:
