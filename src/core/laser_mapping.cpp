@@ -19,8 +19,6 @@ Eigen::Vector3d vec(const Point& p)
   return Eigen::Vector3d(p.x, p.y, p.z);
 }
 
-// Sweeps follow each other when their stamps are a scan period apart within this share of it.
-constexpr double kContiguousTolerance = 0.05;
 // A span solve whose end moved or turned farther than these from the rigid solve's ran off (m, rad).
 constexpr double kMaxSpanShift = 1.0;
 constexpr double kMaxSpanTurn = 10.0 * M_PI / 180.0;
@@ -379,20 +377,18 @@ bool LaserMapping::solveSpan(const OdometryFrame& frame, const Pose& prediction,
     for (const Point& p : stack->points)
     {
       const double s = std::clamp(p.time / period, 0.0, 1.0);
-      points.push_back(transformPoint(used.interpolated(s).inverse() * used, p));
+      points.push_back(transformPoint(sweepEndFromPointTime(used, s).inverse(), p));
       fraction.push_back(s);
     }
   }
   const int corners = static_cast<int>(corner_stack_.size());
   const int total = static_cast<int>(points.size());
 
-  // Where the sweep started: where the previous one ended, or, when sweeps were dropped between them (a
-  // throttled topic), a sweep's time before the end on the way from there to the solved end.
+  // Where the sweep started: a sweep's time before the end on the way from the previous sweep's end to the
+  // solved end. That is the previous end itself unless sweeps were dropped between them (a throttled topic).
   const Pose previous_end = prediction * frame.motion.inverse();
-  const double share = period / frame.dt;  // the sweep's part of the stamp-to-stamp motion
-  const Pose start_prior = share > 1.0 - kContiguousTolerance
-                               ? previous_end
-                               : previous_end * (previous_end.inverse() * pose).scaled(1.0 - share);
+  const double share = std::min(1.0, period / frame.dt);  // the sweep's part of the stamp-to-stamp motion
+  const Pose start_prior = previous_end * (previous_end.inverse() * pose).scaled(1.0 - share);
   SweepSpan span{ start_prior, pose };
   SweepSpanOptions options;
   options.max_iterations = config_.max_iterations;

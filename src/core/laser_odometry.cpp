@@ -290,12 +290,17 @@ Pose LaserOdometry::perScanPeriod(const Pose& motion, double dt, double scan_per
   return motion.scaled(timeRatio(scan_period, dt));
 }
 
+Pose sweepEndFromPointTime(const Pose& motion, double s)
+{
+  return motion.inverse() * motion.interpolated(s);
+}
+
 void deskewToSweepEnd(const Cloud& in, const Pose& motion, double scan_period, Cloud& out)
 {
   const double inv_period = scan_period > 0.0 ? 1.0 / scan_period : 0.0;
-  // The pose at fraction s of the sweep is a rotation by s * angle about the motion's fixed axis and a
-  // translation s * t (slerp from the identity, at constant velocity): one sincos per point instead of
-  // a general slerp.
+  // sweepEndFromPointTime per point: the pose at fraction s of the sweep is a rotation by s * angle about
+  // the motion's fixed axis and a translation s * t (slerp from the identity, at constant velocity), so
+  // one sincos per point instead of a general slerp.
   const Eigen::AngleAxisd rotation(motion.q.normalized());
   const double half_angle = 0.5 * rotation.angle();
   const Eigen::Vector3d axis = rotation.axis();

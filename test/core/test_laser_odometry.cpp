@@ -404,9 +404,9 @@ TEST(LaserOdometryTest, FrameSharesCloudsAndResetRestarts)
   EXPECT_EQ(again.status, OdometryStatus::kInitialized);
 }
 
-// deskewToSweepEnd moves each point by the pose composition it stands for: end <- start, then the
-// constant-velocity pose at the point's fraction of the sweep (slerp from the identity); times outside
-// the sweep clamp to its ends.
+// deskewToSweepEnd moves each point by the pose composition it stands for (sweepEndFromPointTime): end <-
+// start, then the constant-velocity pose at the point's fraction of the sweep (slerp from the identity);
+// times outside the sweep clamp to its ends.
 TEST(LaserOdometryTest, DeskewMatchesPoseComposition)
 {
   constexpr double kPeriod = 0.1;
@@ -430,6 +430,13 @@ TEST(LaserOdometryTest, DeskewMatchesPoseComposition)
     EXPECT_NEAR(out.points[i].y, expected.y, 1e-5);
     EXPECT_NEAR(out.points[i].z, expected.z, 1e-5);
     EXPECT_EQ(out.points[i].time, in.points[i].time);
+    // The per-point transform, and its inverse back to where the sensor saw the point.
+    const Point same = transformPoint(sweepEndFromPointTime(motion, s), in.points[i]);
+    EXPECT_NEAR(same.x, expected.x, 1e-5);
+    const Point back = transformPoint(sweepEndFromPointTime(motion, s).inverse(), out.points[i]);
+    EXPECT_NEAR(back.x, in.points[i].x, 1e-4);
+    EXPECT_NEAR(back.y, in.points[i].y, 1e-4);
+    EXPECT_NEAR(back.z, in.points[i].z, 1e-4);
   }
   // Identity motion leaves the points where they are.
   deskewToSweepEnd(in, Pose(), kPeriod, out);

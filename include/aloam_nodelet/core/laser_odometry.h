@@ -231,6 +231,11 @@ private:
 /// the sweep end.
 void deskewToSweepEnd(const Cloud& in, const Pose& motion, double scan_period, Cloud& out);
 
+/// What deskewToSweepEnd does to one point taken at fraction `s` (0..1) of the sweep: the transform from
+/// the sensor frame at that instant to the sensor frame at the sweep end. Its inverse puts a deskewed point
+/// back where the sensor saw it.
+Pose sweepEndFromPointTime(const Pose& motion, double s);
+
 /// The frame's whole sweep in the sensor frame at the sweep end: `frame.full` itself where it needs no
 /// deskewing (shared), else a deskewed copy. Null without a full cloud.
 std::shared_ptr<const Cloud> fullAtSweepEnd(const OdometryFrame& frame);
