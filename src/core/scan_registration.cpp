@@ -447,6 +447,17 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, RingGro
   FeatureSet& out = group.features;
   const auto threshold = static_cast<float>(config_.curvature_threshold);
 
+  if (config_.straight_edge_tolerance > 0.0)
+  {
+    for (int i = begin; i < end; ++i)
+    {
+      if (curvature[i] > threshold && picked[i] == kFree &&
+          windowIsStraight(full, i, w, ring_begin, ring_end, config_.straight_edge_tolerance))
+      {
+        picked[i] = kNoEdge;
+      }
+    }
+  }
   // Edges: the free candidates above the threshold, sharpest first, ties to the lower index.
   int taken = 0;
   takeBestFirst(

@@ -107,6 +107,8 @@ constexpr const char* kUsage =
     "                     scan_registration's occlusion_straight_tolerance: the far side of such a gap\n"
     "                     gives no edges where it lies on one line with the near side, within M metres\n"
     "                     (default 0.05; 0: it may)\n"
+    "  --straight-edge M  scan_registration's straight_edge_tolerance: no edge where a return's window of\n"
+    "                     returns lies on one line within M metres (default 0.05; 0: LOAM's curvature alone)\n"
     "  --no-motion-hypotheses\n"
     "                     odometry never tries other starts after a poor solve (laser_odometry's\n"
     "                     motion_hypotheses: false)\n"
@@ -136,7 +138,7 @@ struct Options
   bool soft_remap = true;
   std::optional<bool> reject_occluded, sweep_span;
   std::optional<double> span_start_weight;
-  std::optional<double> occlusion_continuity, occlusion_straight;
+  std::optional<double> occlusion_continuity, occlusion_straight, straight_edge;
   std::size_t keep_every = 1;
   std::optional<double> odometry_min_constraint, mapping_min_constraint, nearby_elevation_deg;
   std::optional<double> minimum_range, corner_leaf, surf_leaf, leaf_min_scale;
@@ -453,6 +455,8 @@ bool parse(int argc, char** argv, Options& o)
       real(o.occlusion_continuity);
     else if (arg == "--occlusion-straight")
       real(o.occlusion_straight);
+    else if (arg == "--straight-edge")
+      real(o.straight_edge);
     else if (arg == "--odometry-min-constraint")
       real(o.odometry_min_constraint);
     else if (arg == "--mapping-min-constraint")
@@ -619,6 +623,10 @@ int main(int argc, char** argv)
   if (opt.occlusion_straight)
   {
     config.registration.occlusion_straight_tolerance = *opt.occlusion_straight;
+  }
+  if (opt.straight_edge)
+  {
+    config.registration.straight_edge_tolerance = *opt.straight_edge;
   }
   config.loop_closure = opt.loop_closure;
   config.loop.matching = config.mapping;
