@@ -143,6 +143,21 @@ bool gapIsContinuous(const Cloud& full, int i, int begin, int end, float toleran
          continuesLine(a, b, full.points[std::min(i + 3, end - 1)], tolerance, cap);
 }
 
+// LOAM's curvature vector of return i: the sum of its 2w ring neighbours minus 2w times the return (its
+// squared norm is the curvature). The caller keeps [i - w, i + w] within the ring.
+Eigen::Vector3f curvatureVector(const Cloud& full, int i, int w)
+{
+  Eigen::Vector3f d = -2.0f * static_cast<float>(w) * full.points[i].getVector3fMap();
+  for (int k = i - w; k <= i + w; ++k)
+  {
+    if (k != i)
+    {
+      d += full.points[k].getVector3fMap();
+    }
+  }
+  return d;
+}
+
 // True when the returns k-w .. k+w all lie within `tolerance` (m) of the line through the two ends: a
 // surface sampled unevenly (a wall at a grazing angle), whose LOAM curvature is high but which has no edge.
 bool windowIsStraight(const Cloud& full, int k, int w, int begin, int end, double tolerance)
@@ -447,14 +462,20 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, RingGro
   FeatureSet& out = group.features;
   const auto threshold = static_cast<float>(config_.curvature_threshold);
 
-  if (config_.straight_edge_tolerance > 0.0)
+  if (config_.curvature_across_ring)
   {
     for (int i = begin; i < end; ++i)
     {
-      if (curvature[i] > threshold && picked[i] == kFree &&
-          windowIsStraight(full, i, w, ring_begin, ring_end, config_.straight_edge_tolerance))
+      if (curvature[i] > threshold && picked[i] == kFree)
       {
-        picked[i] = kNoEdge;
+        // The part of the curvature vector across the chord of the window: what the ring bends there.
+        const Eigen::Vector3f d = curvatureVector(full, i, w);
+        const Eigen::Vector3f chord =
+            (full.points[i + w].getVector3fMap() - full.points[i - w].getVector3fMap()).normalized();
+        if ((d - d.dot(chord) * chord).squaredNorm() <= threshold)
+        {
+          picked[i] = kNoEdge;
+        }
       }
     }
   }
@@ -537,21 +558,9 @@ void ScanRegistration::extractRings(Cloud& full, const std::vector<int>& ring_be
     {
       continue;
     }
-    // LOAM curvature: squared norm of (sum of the 2w neighbours - 2w * point).
     for (int i = begin + w; i < end - w; ++i)
     {
-      const Point& p = full.points[i];
-      float dx = -2.0f * w * p.x, dy = -2.0f * w * p.y, dz = -2.0f * w * p.z;
-      for (int k = i - w; k <= i + w; ++k)
-      {
-        if (k != i)
-        {
-          dx += full.points[k].x;
-          dy += full.points[k].y;
-          dz += full.points[k].z;
-        }
-      }
-      scratch_.curvature[i] = dx * dx + dy * dy + dz * dz;
+      scratch_.curvature[i] = curvatureVector(full, i, w).squaredNorm();
     }
     markUnreliable(full, begin, end, group.stats);
 

@@ -145,7 +145,7 @@ void ScanRegistrationNodelet::reconfigureCb(ScanRegistrationConfig& c, std::uint
   config.reject_occluded = c.reject_occluded;
   config.occlusion_continuity = c.occlusion_continuity;
   config.occlusion_straight_tolerance = c.occlusion_straight_tolerance;
-  config.straight_edge_tolerance = c.straight_edge_tolerance;
+  config.curvature_across_ring = c.curvature_across_ring;
   registration_->setConfig(config);  // applies from the next sweep
 }
 

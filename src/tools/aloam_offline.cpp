@@ -107,8 +107,9 @@ constexpr const char* kUsage =
     "                     scan_registration's occlusion_straight_tolerance: the far side of such a gap\n"
     "                     gives no edges where it lies on one line with the near side, within M metres\n"
     "                     (default 0.05; 0: it may)\n"
-    "  --straight-edge M  scan_registration's straight_edge_tolerance: no edge where a return's window of\n"
-    "                     returns lies on one line within M metres (default 0.05; 0: LOAM's curvature alone)\n"
+    "  --curvature-across-ring on|off\n"
+    "                     scan_registration's curvature_across_ring: an edge needs curvature across the\n"
+    "                     ring, not uneven spacing along it (default on; off: LOAM's curvature)\n"
     "  --no-motion-hypotheses\n"
     "                     odometry never tries other starts after a poor solve (laser_odometry's\n"
     "                     motion_hypotheses: false)\n"
@@ -136,9 +137,9 @@ struct Options
   bool baseline = false;
   bool motion_hypotheses = true;
   bool soft_remap = true;
-  std::optional<bool> reject_occluded, sweep_span;
+  std::optional<bool> reject_occluded, sweep_span, curvature_across_ring;
   std::optional<double> span_start_weight;
-  std::optional<double> occlusion_continuity, occlusion_straight, straight_edge;
+  std::optional<double> occlusion_continuity, occlusion_straight;
   std::size_t keep_every = 1;
   std::optional<double> odometry_min_constraint, mapping_min_constraint, nearby_elevation_deg;
   std::optional<double> minimum_range, corner_leaf, surf_leaf, leaf_min_scale;
@@ -455,8 +456,8 @@ bool parse(int argc, char** argv, Options& o)
       real(o.occlusion_continuity);
     else if (arg == "--occlusion-straight")
       real(o.occlusion_straight);
-    else if (arg == "--straight-edge")
-      real(o.straight_edge);
+    else if (arg == "--curvature-across-ring")
+      onOff(o.curvature_across_ring);
     else if (arg == "--odometry-min-constraint")
       real(o.odometry_min_constraint);
     else if (arg == "--mapping-min-constraint")
@@ -624,9 +625,9 @@ int main(int argc, char** argv)
   {
     config.registration.occlusion_straight_tolerance = *opt.occlusion_straight;
   }
-  if (opt.straight_edge)
+  if (opt.curvature_across_ring)
   {
-    config.registration.straight_edge_tolerance = *opt.straight_edge;
+    config.registration.curvature_across_ring = *opt.curvature_across_ring;
   }
   config.loop_closure = opt.loop_closure;
   config.loop.matching = config.mapping;

@@ -136,7 +136,7 @@ std::map<std::string, Defaults> structDefaults()
       { "reject_occluded", str(r.reject_occluded) },
       { "occlusion_continuity", str(r.occlusion_continuity) },
       { "occlusion_straight_tolerance", str(r.occlusion_straight_tolerance) },
-      { "straight_edge_tolerance", str(r.straight_edge_tolerance) },
+      { "curvature_across_ring", str(r.curvature_across_ring) },
       { "threads", str(r.threads) },
       { "max_points", str(reader.max_points) },
   });

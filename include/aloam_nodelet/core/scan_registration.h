@@ -44,14 +44,14 @@ struct ScanRegistrationConfig
   double occlusion_continuity = 0.15;     ///< ... unless one side's line passes this close (times the gap) to the other
   double occlusion_continuity_cap = 0.2;  ///< ... and at most this close (m): far gaps to another object stay shadows
   double occlusion_straight_tolerance = 0.05;  ///< ... no edges on an exempt far side this straight (m); 0: no check
-  // Anywhere on a ring: a return whose window of returns lies on one straight line is no edge, however high
-  // its LOAM curvature (uneven spacing along a wall seen at a grazing angle raises it). Such "edges" keep
-  // their place relative to the sensor and pull the pose back to where the last sweep was
-  // (docs/accuracy_families.md#straight-windows-give-no-edges).
-  double straight_edge_tolerance = 0.05;  ///< no edge where the window is this straight (m); 0: no check
-  bool reject_grazing = false;            ///< no features on surfaces nearly parallel to the beam
-  double grazing_gap_ratio_sq = 0.0002;   ///< gap^2 to both neighbours above this * range^2
-  int threads = 2;                        ///< threads sharing the rings of a sweep (results do not depend on it)
+  // LOAM's curvature of a return is the sum of its window's offsets from it; uneven spacing along a straight
+  // stretch (a wall seen at a grazing angle) raises it without any bend. Such "edges" keep their place
+  // relative to the sensor and pull the pose back to where the last sweep was
+  // (docs/accuracy_families.md#edges-need-a-bend-across-the-ring).
+  bool curvature_across_ring = true;     ///< an edge needs the curvature's part across the window's chord
+  bool reject_grazing = false;           ///< no features on surfaces nearly parallel to the beam
+  double grazing_gap_ratio_sq = 0.0002;  ///< gap^2 to both neighbours above this * range^2
+  int threads = 2;                       ///< threads sharing the rings of a sweep (results do not depend on it)
 };
 
 /// Turns one sweep into a FeatureSet. Holds only its configuration and reusable buffers; a sweep never
