@@ -457,7 +457,9 @@ OdometryFrame LaserOdometry::track(const std::shared_ptr<const FeatureSet>& feat
   // After a gap the solved motion spans the gap, not this sweep: no deskewing with it, no prior from it.
   const Pose sweep_motion = motion_unknown ? Pose() : perScanPeriod(motion_, dt, features->scan_period);
   frame.distorted = frame.distorted || (motion_unknown && config_.deskew && features->has_time);
-  frame.corners = toSweepEnd(features, features->less_sharp, sweep_motion);
+  // Mapping's edges are those that bend across the ring; odometry keeps all of LOAM's as its next targets.
+  const auto all_corners = toSweepEnd(features, features->less_sharp, sweep_motion);
+  frame.corners = features->bending ? toSweepEnd(features, *features->bending, sweep_motion) : all_corners;
   frame.surfs = toSweepEnd(features, features->less_flat, sweep_motion);
   frame.full = std::shared_ptr<const Cloud>(features, &features->full);  // deskewed by whoever displays it
   frame.full_motion = config_.deskew && features->has_time ? sweep_motion : Pose();
@@ -466,7 +468,7 @@ OdometryFrame LaserOdometry::track(const std::shared_ptr<const FeatureSet>& feat
     motion_ = Pose();
   }
   last_stamp_ = features->stamp;
-  last_corners_ = frame.corners;
+  last_corners_ = all_corners;
   last_surfs_ = frame.surfs;
   last_indexed_ = false;
   last_distorted_ = frame.distorted;

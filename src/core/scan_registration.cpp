@@ -143,6 +143,21 @@ bool gapIsContinuous(const Cloud& full, int i, int begin, int end, float toleran
          continuesLine(a, b, full.points[std::min(i + 3, end - 1)], tolerance, cap);
 }
 
+// Empties `f.bending`, or unsets it when the edges are not told apart (mapping then takes less_sharp).
+void resetBending(FeatureSet& f, bool wanted)
+{
+  if (!wanted)
+  {
+    f.bending.reset();
+    return;
+  }
+  if (!f.bending)
+  {
+    f.bending.emplace();
+  }
+  f.bending->clear();
+}
+
 // LOAM's curvature vector of return i: the sum of its 2w ring neighbours minus 2w times the return (its
 // squared norm is the curvature). The caller keeps [i - w, i + w] within the ring.
 Eigen::Vector3f curvatureVector(const Cloud& full, int i, int w)
@@ -462,21 +477,18 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, RingGro
   FeatureSet& out = group.features;
   const auto threshold = static_cast<float>(config_.curvature_threshold);
 
-  if (config_.curvature_across_ring)
+  // Which edge candidates bend across the ring (FeatureSet::bending); all of them stay odometry's edges.
+  auto& straight = scratch_.straight;
+  for (int i = begin; i < end; ++i)
   {
-    for (int i = begin; i < end; ++i)
+    straight[i] = 0;
+    if (config_.curvature_across_ring && curvature[i] > threshold)
     {
-      if (curvature[i] > threshold && picked[i] == kFree)
-      {
-        // The part of the curvature vector across the chord of the window: what the ring bends there.
-        const Eigen::Vector3f d = curvatureVector(full, i, w);
-        const Eigen::Vector3f chord =
-            (full.points[i + w].getVector3fMap() - full.points[i - w].getVector3fMap()).normalized();
-        if ((d - d.dot(chord) * chord).squaredNorm() <= threshold)
-        {
-          picked[i] = kNoEdge;
-        }
-      }
+      // The part of the curvature vector across the chord of the window: what the ring bends there.
+      const Eigen::Vector3f d = curvatureVector(full, i, w);
+      const Eigen::Vector3f chord =
+          (full.points[i + w].getVector3fMap() - full.points[i - w].getVector3fMap()).normalized();
+      straight[i] = (d - d.dot(chord) * chord).squaredNorm() <= threshold;
     }
   }
   // Edges: the free candidates above the threshold, sharpest first, ties to the lower index.
@@ -500,6 +512,10 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, RingGro
           out.sharp.push_back(full.points[i]);
         }
         out.less_sharp.push_back(full.points[i]);
+        if (out.bending && !straight[i])
+        {
+          out.bending->push_back(full.points[i]);
+        }
         picked[i] = kTaken;
         suppressNeighbours(full, i, ring_begin, ring_end);
         return true;
@@ -590,6 +606,7 @@ bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, 
   {
     c->clear();
   }
+  resetBending(out, config_.curvature_across_ring);
   RegistrationStats& stats = out.stats;
   stats.points_in = cloud.size();
 
@@ -650,6 +667,7 @@ bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, 
   scratch_.curvature.resize(n);
   scratch_.range.resize(n);
   scratch_.picked.resize(n);
+  scratch_.straight.resize(n);
   scratch_.label.resize(n);
 
   // Rings are independent from here on: groups of consecutive rings go to whichever thread is free, and
@@ -663,6 +681,7 @@ bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, 
     {
       c->clear();
     }
+    resetBending(group.features, config_.curvature_across_ring);
     group.stats = RegistrationStats{};
   }
   executor_->parallelChunks(
@@ -676,6 +695,10 @@ bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, 
     out.less_sharp.points.insert(out.less_sharp.points.end(), f.less_sharp.points.begin(), f.less_sharp.points.end());
     out.flat.points.insert(out.flat.points.end(), f.flat.points.begin(), f.flat.points.end());
     out.less_flat.points.insert(out.less_flat.points.end(), f.less_flat.points.begin(), f.less_flat.points.end());
+    if (out.bending)
+    {
+      out.bending->points.insert(out.bending->points.end(), f.bending->points.begin(), f.bending->points.end());
+    }
     stats.occluded += group.stats.occluded;
     stats.grazing += group.stats.grazing;
   }
@@ -683,6 +706,10 @@ bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, 
   for (Cloud* c : { &out.sharp, &out.less_sharp, &out.flat, &out.less_flat })
   {
     setUnorganized(*c);
+  }
+  if (out.bending)
+  {
+    setUnorganized(*out.bending);
   }
   return true;
 }

@@ -197,6 +197,10 @@ aloam_nodelet::FeatureClouds toWire(const StampedFeatureSet& in)
   toPointCloud2(f.flat, in.header, out.flat);
   toPointCloud2(f.less_flat, in.header, out.less_flat);
   toPointCloud2(f.full, in.header, out.full);
+  if (f.bending)
+  {
+    toPointCloud2(*f.bending, in.header, out.bending);
+  }
   return out;
 }
 
@@ -212,6 +216,11 @@ void fromWire(const aloam_nodelet::FeatureClouds& in, StampedFeatureSet& out)
   readCloud(in.flat, f->flat, "flat", out.wire_error);
   readCloud(in.less_flat, f->less_flat, "less_flat", out.wire_error);
   readCloud(in.full, f->full, "full", out.wire_error);
+  // A cloud without fields was never filled (a publisher that does not tell the edges apart).
+  if (!in.bending.fields.empty())
+  {
+    readCloud(in.bending, f->bending.emplace(), "bending", out.wire_error);
+  }
   out.header = in.header;
   out.features = f;
 }
@@ -302,7 +311,8 @@ std::string validate(const StampedFeatureSet& msg)
   // Odometry indexes the edge and plane clouds ring by ring; the others it only reads.
   for (const auto& [cloud, name, by_ring] :
        { std::make_tuple(&f.sharp, "sharp", false), std::make_tuple(&f.less_sharp, "less_sharp", true),
-         std::make_tuple(&f.flat, "flat", false), std::make_tuple(&f.less_flat, "less_flat", true) })
+         std::make_tuple(&f.flat, "flat", false), std::make_tuple(&f.less_flat, "less_flat", true),
+         std::make_tuple(f.bending ? &*f.bending : nullptr, "bending", false) })
   {
     const std::string error = checkCloud(cloud, name, by_ring);
     if (!error.empty())

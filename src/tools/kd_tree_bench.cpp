@@ -125,7 +125,8 @@ int main(int argc, char** argv)
     if (have_submap)
     {
       aloam::Cloud corners, surfs;
-      aloam::voxelDownsample(out.features->less_sharp, config.mapping.corner_leaf_size, corners);
+      aloam::voxelDownsample(out.features->bending ? *out.features->bending : out.features->less_sharp,
+                             config.mapping.corner_leaf_size, corners);
       aloam::voxelDownsample(out.features->less_flat, config.mapping.surf_leaf_size, surfs);
       for (aloam::Point& p : corners.points)
       {

@@ -45,8 +45,8 @@ constexpr double kReuseTolerance = 1e-6;
 constexpr double kFlatDriveSpeed = 8.0;
 constexpr int kFlatDriveSweeps = 20;
 constexpr int kFlatDriveFirstRegistered = 2;
-constexpr double kMaxFlatDrivePitchDeg = 0.02;         // measured -0.008 (+0.003 before curvature_across_ring)
-constexpr double kMinFlatDrivePitchWithoutDeg = 0.05;  // measured -0.195 (nose up; -0.082 before)
+constexpr double kMaxFlatDrivePitchDeg = 0.03;         // measured -0.018 (+0.003 before curvature_across_ring)
+constexpr double kMinFlatDrivePitchWithoutDeg = 0.05;  // measured -0.200 (nose up; -0.082 before)
 
 // A walk down the street that starts and stops turning within sweeps (SweepSpanFollowsTurnsThatStartWithinASweep).
 constexpr double kWalkSpeed = 1.4;           // m/s

@@ -395,7 +395,8 @@ TEST(LaserOdometryTest, FrameSharesCloudsAndResetRestarts)
   LaserOdometry odometry;
   const auto f = features(ts::staticSweep(sensor, ts::streetPose(kStartX)), sensor, 0.1, false);
   const OdometryFrame frame = odometry.process(f);
-  EXPECT_EQ(frame.corners.get(), &f->less_sharp);
+  ASSERT_TRUE(f->bending);  // mapping's edges (curvature_across_ring, on by default)
+  EXPECT_EQ(frame.corners.get(), &*f->bending);
   EXPECT_EQ(frame.surfs.get(), &f->less_flat);
   EXPECT_EQ(frame.full.get(), &f->full);
   odometry.reset();

@@ -318,11 +318,12 @@ TEST(PipelineInputsTest, PipelinesShareNoState)
 // and roll: the 16 beams see little floor and ceiling), so with the all-or-nothing fallback every frame
 // keeps the whole prediction and the estimate is lost; remapping keeps the prediction only along the weak
 // directions, entirely (hard) or in part (soft, the default). Measured (seed 1): final error all-or-nothing
-// 4.06 m, hard 0.22 m, soft 0.098 m (hard 0.08 m before edges needed a bend across the ring:
+// 4.06 m, hard 0.11 m, soft 0.11 m (hard 0.08 m before mapping's edges needed a bend across the ring:
 // ScanRegistrationConfig::curvature_across_ring). Over the randomized office and stairwell families soft
 // halves the error (docs/accuracy_families.md), so the bounds here keep both far from the fallback. With the
 // default leaves, which shrink to a quarter in this corridor, the denser map pins the walk down in most
-// frames (measured: 5 of 30 remapped, final error 0.034 m).
+// frames (measured: 12 of 30 remapped, final error 0.058 m; 2-3 of 30 and 0.085 m while mapping still
+// matched the wall points that only look sharp because their spacing grows, which held it but pulled it back).
 TEST(PipelineInputsTest, CorridorRemappingKeepsOnlyTheWeakDirection)
 {
   const SensorModel sensor = ts::preset("VLP16");
@@ -391,9 +392,9 @@ TEST(PipelineInputsTest, CorridorRemappingKeepsOnlyTheWeakDirection)
     EXPECT_EQ(degraded[mode], 0u) << names[mode];
     EXPECT_LT(final_error[mode], 0.5 * final_error[kFallback]) << names[mode];
   }
-  EXPECT_LT(final_error[kHard], 0.35);
+  EXPECT_LT(final_error[kHard], 0.15);
   EXPECT_LT(final_error[kSoft], 0.3);
-  EXPECT_LT(remapped[kSceneLeaves], kCorridorSweeps / 3u);
+  EXPECT_LT(remapped[kSceneLeaves], kCorridorSweeps / 2u);
   EXPECT_EQ(degraded[kSceneLeaves], 0u);
   EXPECT_LT(final_error[kSceneLeaves], 0.15);
 }

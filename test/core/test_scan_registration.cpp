@@ -508,8 +508,9 @@ TEST(ScanRegistrationTest, OcclusionRejectionRemovesFarSideEdges)
 
 // A VLP-16 sweep down an empty corridor (walls at y = +-1.25 m, floor and ceiling at z = -+1.5 m, open
 // ends): every return lies on a plane, but along a wall seen at a grazing angle the returns spread apart
-// faster and faster, which raises LOAM's curvature there. Such a point is no edge: curvature_across_ring
-// keeps it out of the edge points, while the corners where walls meet floor and ceiling stay edges.
+// faster and faster, which raises LOAM's curvature there. Such a point is no edge for mapping:
+// curvature_across_ring keeps it out of FeatureSet::bending, while the corners where walls meet floor and
+// ceiling stay in; odometry's edges (less_sharp) stay LOAM's.
 TEST(ScanRegistrationTest, GrazingWallsGiveNoEdgesCornersDo)
 {
   constexpr double kHalfWidth = 1.25, kHalfHeight = 1.5, kAzimuthStepDeg = 0.2, kCorner = 0.15;
@@ -540,30 +541,45 @@ TEST(ScanRegistrationTest, GrazingWallsGiveNoEdgesCornersDo)
   // A sharp point on a wall face, away from the floor and ceiling corners.
   const auto on_wall_face = [&](const Point& p)
   { return std::fabs(std::fabs(p.y) - kHalfWidth) < 1e-3 && std::fabs(p.z) < kHalfHeight - kCorner; };
-  const auto count = [&](bool across_ring, int& face, int& corner)
+  const auto count = [&](const Cloud& edges, int& face, int& corner)
   {
-    ScanRegistrationConfig config = configFor(sensor);
-    config.curvature_across_ring = across_ring;
-    ScanRegistration registration(config);
-    FeatureSet features;
-    EXPECT_TRUE(registration.process(cloud, 1.0, false, false, features));
     face = corner = 0;
-    for (const Point& p : features.less_sharp.points)
+    for (const Point& p : edges.points)
     {
       face += on_wall_face(p) ? 1 : 0;
       corner += std::fabs(std::fabs(p.y) - kHalfWidth) < kCorner && std::fabs(std::fabs(p.z) - kHalfHeight) < kCorner;
     }
   };
+  ScanRegistrationConfig config = configFor(sensor);
+  config.curvature_across_ring = false;
+  FeatureSet loam;
+  ASSERT_TRUE(ScanRegistration(config).process(cloud, 1.0, false, false, loam));
+  EXPECT_FALSE(loam.bending.has_value());  // mapping then takes less_sharp
+  config.curvature_across_ring = true;
+  FeatureSet features;
+  ASSERT_TRUE(ScanRegistration(config).process(cloud, 1.0, false, false, features));
+  ASSERT_TRUE(features.bending.has_value());
+  // Odometry's edges are LOAM's either way.
+  EXPECT_EQ(features.less_sharp.size(), loam.less_sharp.size());
+  EXPECT_EQ(features.sharp.size(), loam.sharp.size());
   int face_loam = 0, corner_loam = 0, face = 0, corner = 0;
-  count(false, face_loam, corner_loam);
-  count(true, face, corner);
+  count(loam.less_sharp, face_loam, corner_loam);
+  count(*features.bending, face, corner);
   EXPECT_GT(face_loam, 50) << "LOAM's curvature alone should find edges on the grazing walls";
   std::printf(
-      "[ measured ] grazing corridor walls: edge points on the wall faces %d (LOAM's curvature %d), "
+      "[ measured ] grazing corridor walls: mapping's edge points on the wall faces %d (LOAM's curvature %d), "
       "at the corners %d (%d)\n",
       face, face_loam, corner, corner_loam);
-  EXPECT_LE(face, face_loam / 5);      // measured 40 of 344
-  EXPECT_GT(corner, corner_loam / 2);  // measured 108 of 124
+  EXPECT_LE(face, face_loam / 5);
+  EXPECT_GT(corner, corner_loam / 2);
+  // Every bending edge is one of less_sharp's.
+  std::size_t found = 0;
+  const auto all = ts::indexByCoordinates(features.less_sharp);
+  for (const Point& p : features.bending->points)
+  {
+    found += all.count(ts::keyOf(p));
+  }
+  EXPECT_EQ(found, features.bending->size());
 }
 
 // With fields, the output carries exactly the input's rings and times.

@@ -100,6 +100,17 @@ TEST(StageSerialization, FeatureSetRoundTrip)
   expectSameCloud(in.features->flat, back.features->flat, "flat");
   expectSameCloud(in.features->less_flat, back.features->less_flat, "less_flat");
   expectSameCloud(in.features->full, back.features->full, "full");
+  ASSERT_TRUE(in.features->bending);
+  ASSERT_TRUE(back.features->bending);
+  EXPECT_LT(in.features->bending->size(), in.features->less_sharp.size());  // the street has grazing walls too
+  expectSameCloud(*in.features->bending, *back.features->bending, "bending");
+
+  // Without the split (curvature_across_ring off, or a publisher that does not fill it) none comes back,
+  // and mapping takes less_sharp.
+  auto unsplit = std::make_shared<aloam::FeatureSet>(*in.features);
+  unsplit->bending.reset();
+  in.features = unsplit;
+  EXPECT_FALSE(roundTrip(in).features->bending);
 }
 
 // An odometry frame survives serialization: poses, status, counters, frames and clouds.

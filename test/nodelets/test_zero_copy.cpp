@@ -99,7 +99,8 @@ TEST(ZeroCopy, StagesShareObjectsInOneManager)
     ASSERT_TRUE(features->features);
     // Odometry's clouds alias the feature set it received: the same object this test received, hence
     // the object registration published (a deserialized copy would live elsewhere).
-    EXPECT_EQ(frame->frame.corners.get(), &features->features->less_sharp) << "stamp " << stamp;
+    ASSERT_TRUE(features->features->bending) << "stamp " << stamp;  // curvature_across_ring is on by default
+    EXPECT_EQ(frame->frame.corners.get(), &*features->features->bending) << "stamp " << stamp;
     EXPECT_EQ(frame->frame.surfs.get(), &features->features->less_flat) << "stamp " << stamp;
     EXPECT_EQ(frame->frame.full.get(), &features->features->full) << "stamp " << stamp;
   }

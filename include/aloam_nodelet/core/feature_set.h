@@ -2,6 +2,7 @@
 #pragma once
 
 #include <cstddef>
+#include <optional>
 
 #include "aloam_nodelet/core/point_types.h"
 
@@ -28,10 +29,13 @@ struct FeatureSet
   double scan_period = 0.1;
   bool has_time = false;  ///< per-point time is meaningful (from the field or from azimuth)
   Cloud sharp;            ///< few, strongest edge points of each sector
-  Cloud less_sharp;       ///< edge points (superset of sharp)
+  Cloud less_sharp;       ///< edge points (superset of sharp): odometry's edges
   Cloud flat;             ///< few, flattest points of each sector
   Cloud less_flat;        ///< planar points, voxel-filtered (superset of flat, before filtering)
   Cloud full;             ///< every used point
+  /// The points of less_sharp whose curvature bends across the ring: mapping's edges
+  /// (ScanRegistrationConfig::curvature_across_ring). Unset: mapping takes less_sharp.
+  std::optional<Cloud> bending;
   RegistrationStats stats;
 };
 

@@ -46,9 +46,10 @@ struct ScanRegistrationConfig
   double occlusion_straight_tolerance = 0.05;  ///< ... no edges on an exempt far side this straight (m); 0: no check
   // LOAM's curvature of a return is the sum of its window's offsets from it; uneven spacing along a straight
   // stretch (a wall seen at a grazing angle) raises it without any bend. Such "edges" keep their place
-  // relative to the sensor and pull the pose back to where the last sweep was
-  // (docs/accuracy_families.md#edges-need-a-bend-across-the-ring).
-  bool curvature_across_ring = true;     ///< an edge needs the curvature's part across the window's chord
+  // relative to the sensor: matched against the map they pull the pose back to where the last sweep was,
+  // while scan to scan they hold roll and pitch in corridors
+  // (docs/accuracy_families.md#mappings-edges-need-a-bend-across-the-ring).
+  bool curvature_across_ring = true;     ///< fill FeatureSet::bending: the edges whose curvature bends across
   bool reject_grazing = false;           ///< no features on surfaces nearly parallel to the beam
   double grazing_gap_ratio_sq = 0.0002;  ///< gap^2 to both neighbours above this * range^2
   int threads = 2;                       ///< threads sharing the rings of a sweep (results do not depend on it)
@@ -82,6 +83,7 @@ private:
     std::vector<float> curvature;
     std::vector<float> range;
     std::vector<std::uint8_t> picked;
+    std::vector<std::uint8_t> straight;  // 1: the curvature lies along the window's chord (no bend)
     std::vector<std::int8_t> label;
   };
   /// One thread's contiguous block of the input, sorted into rings.
