@@ -18,10 +18,10 @@ import aloam_rostest_utils as u
 DURATION_S = 15.0  # 150 sweeps at 10 Hz
 #   ns: (family, seed, segments m, max ATE m, max rotation deg/100 m, check direction)
 CASES = {
-    "corridor": ("corridor", 1, "1.9,3.8,7.6", 0.051, 37.0, True),    # turn walk 15.3 m: 0.034 m, 24.4 (A-LOAM 0.049, 56.2)
-    "office": ("office", 1, "2.9,5.8,11.6", 0.036, 29.0, True),       # 23.1 m: 0.024 m, 19.6 (A-LOAM 0.045, 44.5)
-    "stairwell": ("stairwell", 2, "1.6,3.2,6.3", 0.23, 156.0, False),  # 12.6 m: 0.155 m, 104.0 (A-LOAM 0.236, 162.8)
-    "urban": ("urban", 2, "1.8,3.6,7.2", 0.045, 22.0, False),         # hand-held 14.3 m: 0.027 m, 14.5 (A-LOAM 0.045, 30.2)
+    "corridor": ("corridor", 1, "1.9,3.8,7.6", 0.051, 37.0, True),    # turn walk 15.2 m: 0.034 m, 23.6 (A-LOAM 0.049, 56.2)
+    "office": ("office", 1, "2.9,5.8,11.6", 0.036, 29.0, True),       # 22.9 m: 0.024 m, 19.4 (A-LOAM 0.045, 44.5)
+    "stairwell": ("stairwell", 2, "1.6,3.2,6.3", 0.075, 90.0, False),  # 12.6 m: 0.047 m, 56.7 (A-LOAM 0.236, 162.8)
+    "urban": ("urban", 2, "1.8,3.6,7.2", 0.04, 18.0, False),          # hand-held 14.2 m: 0.025 m, 11.3 (A-LOAM 0.045, 30.2)
 }
 
 
