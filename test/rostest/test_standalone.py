@@ -60,6 +60,8 @@ class TestStandalone(u.ScratchTestCase):
         self.assertEqual(unanswered, [], "sweeps without aft_mapped_to_init")
         stamps = [c.header.stamp.to_nsec() for c in clouds]
         for c in (features, frames):
+            # The last sweep's message reaches this node on its own connection, possibly after the answer.
+            c.wait_for(stamps[-1], 10.0)
             self.assertEqual(c.stamps(), stamps, "%s: every sweep, in order" % c.topic)
 
         trajectory = self.path("trajectory.txt")
