@@ -477,20 +477,15 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, RingGro
   FeatureSet& out = group.features;
   const auto threshold = static_cast<float>(config_.curvature_threshold);
 
-  // Which edge candidates bend across the ring (FeatureSet::bending); all of them stay odometry's edges.
-  auto& straight = scratch_.straight;
-  for (int i = begin; i < end; ++i)
+  // Whether edge point i bends across the ring (FeatureSet::bending): the part of its curvature vector
+  // across the chord of its window passes the threshold. Every edge point stays one of odometry's.
+  const auto bends = [&](int i)
   {
-    straight[i] = 0;
-    if (config_.curvature_across_ring && curvature[i] > threshold)
-    {
-      // The part of the curvature vector across the chord of the window: what the ring bends there.
-      const Eigen::Vector3f d = curvatureVector(full, i, w);
-      const Eigen::Vector3f chord =
-          (full.points[i + w].getVector3fMap() - full.points[i - w].getVector3fMap()).normalized();
-      straight[i] = (d - d.dot(chord) * chord).squaredNorm() <= threshold;
-    }
-  }
+    const Eigen::Vector3f d = curvatureVector(full, i, w);
+    const Eigen::Vector3f chord =
+        (full.points[i + w].getVector3fMap() - full.points[i - w].getVector3fMap()).normalized();
+    return (d - d.dot(chord) * chord).squaredNorm() > threshold;
+  };
   // Edges: the free candidates above the threshold, sharpest first, ties to the lower index.
   int taken = 0;
   takeBestFirst(
@@ -512,7 +507,7 @@ void ScanRegistration::pickSector(const Cloud& full, int begin, int end, RingGro
           out.sharp.push_back(full.points[i]);
         }
         out.less_sharp.push_back(full.points[i]);
-        if (out.bending && !straight[i])
+        if (out.bending && bends(i))
         {
           out.bending->push_back(full.points[i]);
         }
@@ -667,7 +662,6 @@ bool ScanRegistration::process(const Cloud& cloud, double stamp, bool has_ring, 
   scratch_.curvature.resize(n);
   scratch_.range.resize(n);
   scratch_.picked.resize(n);
-  scratch_.straight.resize(n);
   scratch_.label.resize(n);
 
   // Rings are independent from here on: groups of consecutive rings go to whichever thread is free, and

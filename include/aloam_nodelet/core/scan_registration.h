@@ -83,7 +83,6 @@ private:
     std::vector<float> curvature;
     std::vector<float> range;
     std::vector<std::uint8_t> picked;
-    std::vector<std::uint8_t> straight;  // 1: the curvature lies along the window's chord (no bend)
     std::vector<std::int8_t> label;
   };
   /// One thread's contiguous block of the input, sorted into rings.
