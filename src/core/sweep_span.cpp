@@ -116,14 +116,6 @@ bool solveSweepSpan(SweepSpan& span, const std::vector<SpanLineMatch>& lines, co
   problem.AddResidualBlock(new ceres::AutoDiffCostFunction<StartPrior, 6, 4, 3>(
                                new StartPrior(start_prior, options.start_weight, options.lever_arm)),
                            nullptr, q_s, t_s);
-  if (!options.solve_translation && problem.HasParameterBlock(t_s))
-  {
-    problem.SetParameterBlockConstant(t_s);
-  }
-  if (!options.solve_translation && problem.HasParameterBlock(t_e))
-  {
-    problem.SetParameterBlockConstant(t_e);
-  }
 
   ceres::Solver::Options solver;
   solver.linear_solver_type = ceres::DENSE_QR;

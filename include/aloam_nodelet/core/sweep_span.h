@@ -53,8 +53,6 @@ struct SweepSpanOptions
   /// matches would hold it; rotations count as the motion of a point lever_arm away.
   double start_weight = 3.0;
   double lever_arm = 10.0;
-  /// Solve the translations too (the start's held to the prior's like its rotation); false: they stay.
-  bool solve_translation = true;
 };
 
 /// Solves the start and end poses of `span` under the matches and the start's prior. No handling of weak
