@@ -8,46 +8,93 @@ namespace aloam
 {
 namespace
 {
-// The point at fraction s of the sweep spanned by (q_s, t_s) and (q_e, t_e).
-template <typename T>
-Eigen::Matrix<T, 3, 1> placeAt(const T* q_s, const T* t_s, const T* q_e, const T* t_e, double s,
-                               const Eigen::Vector3d& p)
+// The pose a fraction s of the way through the span (q_s, t_s) -> (q_e, t_e), as SweepSpan::at blends it,
+// with the derivatives of its quaternion by the two end quaternions (4 x 4 each, Eigen's x, y, z, w
+// order). The blend is normalize(v), v = (1 - s) q_s + s sign q_e, whose derivative by v is
+// (I - q q^T) / |v|.
+struct BlendTerms
 {
-  const Eigen::Quaternion<T> q = blendRotation(Eigen::Quaternion<T>(Eigen::Map<const Eigen::Quaternion<T>>(q_s)),
-                                               Eigen::Quaternion<T>(Eigen::Map<const Eigen::Quaternion<T>>(q_e)), T(s));
-  const Eigen::Map<const Eigen::Matrix<T, 3, 1>> a(t_s), b(t_e);
-  return q * p.cast<T>() + T(1.0 - s) * a + T(s) * b;
-}
-
-struct SpanLineResidual
-{
-  explicit SpanLineResidual(const SpanLineMatch& m) : m_(m), keep_(freeAxisProjection(m.match)) {}
-
-  template <typename T>
-  bool operator()(const T* q_s, const T* t_s, const T* q_e, const T* t_e, T* residual) const
+  BlendTerms(const double* q_s, const double* t_s, const double* q_e, const double* t_e, double s)
   {
-    const Eigen::Matrix<T, 3, 1> x = placeAt(q_s, t_s, q_e, t_e, m_.s, m_.match.point) - m_.match.a.cast<T>();
-    Eigen::Map<Eigen::Matrix<T, 3, 1>> r(residual);
-    r = keep_.cast<T>() * x.cross(m_.match.direction.cast<T>());
-    return true;
+    const Eigen::Map<const Eigen::Vector4d> a(q_s), b(q_e);
+    const double sign = a.dot(b) < 0.0 ? -1.0 : 1.0;
+    const Eigen::Vector4d v = (1.0 - s) * a + s * sign * b;
+    const double norm = v.norm();
+    const Eigen::Vector4d q = v / norm;
+    const Eigen::Matrix4d unit = (Eigen::Matrix4d::Identity() - q * q.transpose()) / norm;
+    dq_start = (1.0 - s) * unit;
+    dq_end = s * sign * unit;
+    for (int i = 0; i < 4; ++i)
+    {
+      q_at[i] = q[i];
+    }
+    for (int i = 0; i < 3; ++i)
+    {
+      t_at[i] = (1.0 - s) * t_s[i] + s * t_e[i];
+    }
   }
 
-  SpanLineMatch m_;
-  Eigen::Matrix3d keep_;
+  double q_at[4], t_at[3];
+  Eigen::Matrix4d dq_start, dq_end;
 };
 
-struct SpanPlaneResidual
+void evaluateMatch(const LineMatch& m, const PoseTerms& pose, double* r, double* jq, double* jt)
 {
-  explicit SpanPlaneResidual(const SpanPlaneMatch& m) : m_(m) {}
+  evaluateLine(m, pose, r, jq, jt);
+}
+void evaluateMatch(const PlaneMatch& m, const PoseTerms& pose, double* r, double* jq, double* jt)
+{
+  evaluatePlane(m, pose, r, jq, jt);
+}
 
-  template <typename T>
-  bool operator()(const T* q_s, const T* t_s, const T* q_e, const T* t_e, T* residual) const
+// One match's residuals (those of the rigid solve, at the blended pose of its point's time) over the
+// blocks q_s, t_s, q_e, t_e, with analytic Jacobians: the rigid Jacobians chained through the blend.
+template <typename SpanMatch, int Rows>
+class SpanCost : public ceres::SizedCostFunction<Rows, 4, 3, 4, 3>
+{
+public:
+  explicit SpanCost(const SpanMatch& m) : m_(m) {}
+
+  bool Evaluate(double const* const* x, double* residuals, double** jacobians) const override
   {
-    residual[0] = m_.match.normal.cast<T>().dot(placeAt(q_s, t_s, q_e, t_e, m_.s, m_.match.point)) + T(m_.match.d);
+    const double s = m_.s;
+    const BlendTerms blend(x[0], x[1], x[2], x[3], s);
+    const PoseTerms pose(blend.q_at, blend.t_at);
+    Eigen::Matrix<double, Rows, 4, Eigen::RowMajor> jq;
+    Eigen::Matrix<double, Rows, 3, Eigen::RowMajor> jt;
+    evaluateMatch(m_.match, pose, residuals, jacobians != nullptr ? jq.data() : nullptr,
+                  jacobians != nullptr ? jt.data() : nullptr);
+    if (jacobians == nullptr)
+    {
+      return true;
+    }
+    using RowsBy4 = Eigen::Matrix<double, Rows, 4, Eigen::RowMajor>;
+    using RowsBy3 = Eigen::Matrix<double, Rows, 3, Eigen::RowMajor>;
+    if (jacobians[0] != nullptr)
+    {
+      Eigen::Map<RowsBy4> jacobian(jacobians[0]);
+      jacobian = jq * blend.dq_start;
+    }
+    if (jacobians[1] != nullptr)
+    {
+      Eigen::Map<RowsBy3> jacobian(jacobians[1]);
+      jacobian = (1.0 - s) * jt;
+    }
+    if (jacobians[2] != nullptr)
+    {
+      Eigen::Map<RowsBy4> jacobian(jacobians[2]);
+      jacobian = jq * blend.dq_end;
+    }
+    if (jacobians[3] != nullptr)
+    {
+      Eigen::Map<RowsBy3> jacobian(jacobians[3]);
+      jacobian = s * jt;
+    }
     return true;
   }
 
-  SpanPlaneMatch m_;
+private:
+  SpanMatch m_;
 };
 
 // Holds the start near the prior: the offset of a point lever_arm away (rotation) and the translation,
@@ -91,6 +138,16 @@ void unpack(const Pose& pose, double* q, double* t)
 }
 }  // namespace
 
+ceres::CostFunction* spanCost(const SpanLineMatch& m)
+{
+  return new SpanCost<SpanLineMatch, 3>(m);
+}
+
+ceres::CostFunction* spanCost(const SpanPlaneMatch& m)
+{
+  return new SpanCost<SpanPlaneMatch, 1>(m);
+}
+
 bool solveSweepSpan(SweepSpan& span, const std::vector<SpanLineMatch>& lines, const std::vector<SpanPlaneMatch>& planes,
                     const Pose& start_prior, const SweepSpanOptions& options)
 {
@@ -104,14 +161,11 @@ bool solveSweepSpan(SweepSpan& span, const std::vector<SpanLineMatch>& lines, co
   ceres::LossFunction* loss = options.huber_delta > 0.0 ? new ceres::HuberLoss(options.huber_delta) : nullptr;
   for (const SpanLineMatch& m : lines)
   {
-    problem.AddResidualBlock(new ceres::AutoDiffCostFunction<SpanLineResidual, 3, 4, 3, 4, 3>(new SpanLineResidual(m)),
-                             loss, q_s, t_s, q_e, t_e);
+    problem.AddResidualBlock(spanCost(m), loss, q_s, t_s, q_e, t_e);
   }
   for (const SpanPlaneMatch& m : planes)
   {
-    problem.AddResidualBlock(
-        new ceres::AutoDiffCostFunction<SpanPlaneResidual, 1, 4, 3, 4, 3>(new SpanPlaneResidual(m)), loss, q_s, t_s,
-        q_e, t_e);
+    problem.AddResidualBlock(spanCost(m), loss, q_s, t_s, q_e, t_e);
   }
   problem.AddResidualBlock(new ceres::AutoDiffCostFunction<StartPrior, 6, 4, 3>(
                                new StartPrior(start_prior, options.start_weight, options.lever_arm)),

@@ -1,7 +1,7 @@
-// The sweep-span solve (a start and an end pose per sweep): it recovers a motion within the sweep (or only
-// the rotations, keeping the translations it is given), and its start prior holds the start as strongly
-// as it is told to.
+// The sweep-span solve (a start and an end pose per sweep): its costs' Jacobians, it recovers a motion
+// within the sweep, and its start prior holds the start as strongly as it is told to.
 #include <cmath>
+#include <memory>
 #include <random>
 #include <vector>
 
@@ -83,6 +83,70 @@ TEST(SweepSpan, RecoversATurnWithinTheSweep)
   EXPECT_LT((span.end.t - truth.end.t).norm(), kRecoveredMetres);
   EXPECT_LT(deg(span.start.q.angularDistance(truth.start.q)), kRecoveredDeg);
   EXPECT_LT((span.start.t - truth.start.t).norm(), kRecoveredMetres);
+}
+
+// The analytic Jacobians of a span cost against central differences of its residuals, at a span whose
+// quaternions are off the unit sphere and on opposite hemispheres (the blend flips one).
+template <typename SpanMatch>
+void expectJacobiansMatchDifferences(const SpanMatch& match, int rows)
+{
+  std::unique_ptr<ceres::CostFunction> cost(spanCost(match));
+  std::vector<std::vector<double>> blocks = {
+    { 0.1, -0.2, 0.3, 0.95 }, { 0.4, -1.2, 0.3 }, { -0.12, 0.25, -0.28, -0.9 }, { 0.9, -0.8, 0.5 }
+  };
+  std::vector<double*> parameters;
+  for (std::vector<double>& block : blocks)
+  {
+    parameters.push_back(block.data());
+  }
+  std::vector<std::vector<double>> jacobians;
+  std::vector<double*> jacobian_pointers;
+  for (const std::vector<double>& block : blocks)
+  {
+    jacobians.emplace_back(rows * block.size());
+  }
+  for (std::vector<double>& jacobian : jacobians)
+  {
+    jacobian_pointers.push_back(jacobian.data());
+  }
+  std::vector<double> residual(rows), plus(rows), minus(rows);
+  ASSERT_TRUE(cost->Evaluate(parameters.data(), residual.data(), jacobian_pointers.data()));
+  constexpr double kStep = 1e-6;
+  for (std::size_t b = 0; b < blocks.size(); ++b)
+  {
+    const int width = static_cast<int>(blocks[b].size());
+    for (int c = 0; c < width; ++c)
+    {
+      const double kept = blocks[b][c];
+      blocks[b][c] = kept + kStep;
+      ASSERT_TRUE(cost->Evaluate(parameters.data(), plus.data(), nullptr));
+      blocks[b][c] = kept - kStep;
+      ASSERT_TRUE(cost->Evaluate(parameters.data(), minus.data(), nullptr));
+      blocks[b][c] = kept;
+      for (int r = 0; r < rows; ++r)
+      {
+        EXPECT_NEAR(jacobians[b][r * width + c], (plus[r] - minus[r]) / (2.0 * kStep), 1e-6)
+            << "block " << b << " column " << c << " row " << r;
+      }
+    }
+  }
+}
+
+TEST(SweepSpan, CostJacobiansMatchDifferences)
+{
+  SpanPlaneMatch plane;
+  plane.s = 0.3;
+  plane.match = PlaneMatch{ Eigen::Vector3d(4.0, -2.0, 1.0), Eigen::Vector3d(1, 2, 2).normalized(), -3.0 };
+  expectJacobiansMatchDifferences(plane, 1);
+
+  SpanLineMatch line;
+  line.s = 0.8;
+  line.match.point = Eigen::Vector3d(-3.0, 5.0, 0.5);
+  line.match.a = Eigen::Vector3d(1.0, 2.0, 0.0);
+  line.match.direction = Eigen::Vector3d(0, 1, 3).normalized();
+  expectJacobiansMatchDifferences(line, 3);
+  line.match.free_axis = line.match.direction.unitOrthogonal();
+  expectJacobiansMatchDifferences(line, 3);
 }
 
 TEST(SweepSpan, StartPriorHoldsTheStartAsToldTo)

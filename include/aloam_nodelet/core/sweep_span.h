@@ -14,12 +14,12 @@ namespace aloam
 {
 /// The rotation a fraction `s` of the way from `a` to `b`: the normalized blend (nlerp) of the two unit
 /// quaternions on the same hemisphere, within a few thousandths of a degree of slerp over a sweep's turn.
-template <typename T>
-Eigen::Quaternion<T> blendRotation(const Eigen::Quaternion<T>& a, const Eigen::Quaternion<T>& b, const T& s)
+/// (spanCost differentiates the same blend.)
+inline Eigen::Quaterniond blendRotation(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b, double s)
 {
-  const T sign = a.coeffs().dot(b.coeffs()) < T(0) ? T(-1) : T(1);
-  Eigen::Quaternion<T> q;
-  q.coeffs() = (T(1) - s) * a.coeffs() + s * sign * b.coeffs();
+  const double sign = a.coeffs().dot(b.coeffs()) < 0.0 ? -1.0 : 1.0;
+  Eigen::Quaterniond q;
+  q.coeffs() = (1.0 - s) * a.coeffs() + s * sign * b.coeffs();
   q.normalize();
   return q;
 }
@@ -55,9 +55,15 @@ struct SweepSpanOptions
   double lever_arm = 10.0;
 };
 
+/// The residuals of one match under a span (those of the rigid solve, evaluateLine / evaluatePlane, at the
+/// blended pose of the match's time) as a Ceres cost function over the parameter blocks q_start, t_start,
+/// q_end, t_end (quaternions in Eigen's x, y, z, w order), with analytic Jacobians. The caller owns it.
+ceres::CostFunction* spanCost(const SpanLineMatch& m);
+ceres::CostFunction* spanCost(const SpanPlaneMatch& m);
+
 /// Solves the start and end poses of `span` under the matches and the start's prior. No handling of weak
-/// directions: along one the span wanders (mapping spans only strongly constrained sweeps). Ceres with
-/// automatic differentiation, on the calling thread so that the result does not depend on threads.
+/// directions: along one the span wanders (mapping spans only strongly constrained sweeps). Ceres, on
+/// the calling thread so that the result does not depend on threads.
 /// Returns false when the solve failed (span unchanged).
 bool solveSweepSpan(SweepSpan& span, const std::vector<SpanLineMatch>& lines, const std::vector<SpanPlaneMatch>& planes,
                     const Pose& start_prior, const SweepSpanOptions& options);
