@@ -783,7 +783,10 @@ int main(int argc, char** argv)
         {
           std::cerr << "frame " << i << " odometry status " << static_cast<int>(out.odometry.status) << " inliers "
                     << out.odometry.inlier_share << " hypothesis " << out.odometry.hypothesis << " mapping status "
-                    << static_cast<int>(out.mapping.status) << " motion " << out.odometry.motion.t.transpose() << "\n";
+                    << static_cast<int>(out.mapping.status) << " motion " << out.odometry.motion.t.transpose()
+                    << " odometry matches " << out.odometry.corner_matches << "/" << out.odometry.plane_matches
+                    << " constraint " << out.odometry.constraint << " weak " << aloam::describe(out.odometry.degenerate)
+                    << "\n";
         }
       }
       else

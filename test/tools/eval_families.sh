@@ -13,10 +13,12 @@
 #   --families LIST     comma-separated (default corridor,tunnel,office,stairwell,urban,field; also
 #                       corridor_issue23, the fixed corridor of the issue)
 #   ALOAM_OFFLINE_ARGS  passed on to every aloam_offline run (e.g. --baseline)
-# Environment: SENSOR (default VLP16), DURATION (s, default 15: 150 sweeps at 10 Hz), KEEP_BAGS=1 keeps the
-#   bags and KITTI folders, ALOAM_PEER_WS (A-LOAM's workspace, default ${TMPDIR:-/tmp}/aloam_ws), ALOAM_PEERS
-#   (default ../shared/peers beside the repository), ALOAM_PEER_CACHE (a folder: A-LOAM's trajectory of each
-#   draw is kept there under a checksum of the sweeps and reused when the same sweeps come again).
+# Environment: SENSOR (default VLP16), DURATION (s, default 15: 150 sweeps at 10 Hz), SIM_ARGS (more
+#   aloam_sim arguments for every draw, e.g. "--noise 0.003": less range noise than the default 0.01 m),
+#   KEEP_BAGS=1 keeps the bags and KITTI folders, ALOAM_PEER_WS (A-LOAM's workspace, default
+#   ${TMPDIR:-/tmp}/aloam_ws), ALOAM_PEERS (default ../shared/peers beside the repository), ALOAM_PEER_CACHE
+#   (a folder: A-LOAM's trajectory of each draw is kept there under a checksum of the sweeps and reused when
+#   the same sweeps come again).
 # A-LOAM: build it once with `../shared/peers/build_aloam.sh /tmp/aloam_ws` (about 3 minutes; it installs
 #   libtf-dev if missing). Without it only this package's figures are printed, and the summary says so.
 # Needs Debian's python3 (rosbag, numpy) first on PATH and the workspace's setup.bash sourced.
@@ -53,7 +55,8 @@ printf "family\tseed\tstatus\tframes\tpath_m\tours_ate_m\tours_drift_pct\tours_r
 printf "aloam_ate_m\taloam_drift_pct\taloam_rot_deg_100m\taloam_backward\tours_s\taloam_s\tdraw\n" >>"$tsv"
 echo "# sensor $sensor, ${duration} s per draw, seeds $first_seed..$((first_seed + draws - 1)), A-LOAM $([ $with_peer = 1 ] && echo "from $peer_ws" || echo "not run")" |
   tee "$out/summary.txt"
-echo "# aloam_offline extra args: ${offline_args[*]:-(none)}" | tee -a "$out/summary.txt"
+echo "# aloam_offline extra args: ${offline_args[*]:-(none)}; aloam_sim extra args: ${SIM_ARGS:-(none)}" |
+  tee -a "$out/summary.txt"
 start_all=$(date +%s)
 IFS=, read -r -a family_list <<<"$families"
 for family in "${family_list[@]}"; do
@@ -62,7 +65,9 @@ for family in "${family_list[@]}"; do
     rm -rf "$run"
     mkdir -p "$run"
     status=ok ours=(nan nan nan nan) peer=(nan nan nan nan) ours_s=nan peer_s=nan frames=nan path=nan
-    if ! why=$(simulate_with "$run" --sensor "$sensor" --family "$family" --duration "$duration" --seed "$seed"); then
+    # shellcheck disable=SC2086
+    if ! why=$(simulate_with "$run" --sensor "$sensor" --family "$family" --duration "$duration" --seed "$seed" \
+      ${SIM_ARGS:-}); then
       status="sim_failed"
       echo "$family $seed: $why" >&2
     else
