@@ -16,9 +16,9 @@ struct BlendTerms
 {
   BlendTerms(const double* q_s, const double* t_s, const double* q_e, const double* t_e, double s)
   {
-    const Eigen::Map<const Eigen::Vector4d> a(q_s), b(q_e);
-    const double sign = a.dot(b) < 0.0 ? -1.0 : 1.0;
-    const Eigen::Vector4d v = (1.0 - s) * a + s * sign * b;
+    double sign = 1.0;
+    const Eigen::Vector4d v =
+        blendCoefficients(Eigen::Map<const Eigen::Vector4d>(q_s), Eigen::Map<const Eigen::Vector4d>(q_e), s, sign);
     const double norm = v.norm();
     const Eigen::Vector4d q = v / norm;
     const Eigen::Matrix4d unit = (Eigen::Matrix4d::Identity() - q * q.transpose()) / norm;
@@ -58,18 +58,18 @@ public:
   bool Evaluate(double const* const* x, double* residuals, double** jacobians) const override
   {
     const double s = m_.s;
+    using RowsBy4 = Eigen::Matrix<double, Rows, 4, Eigen::RowMajor>;
+    using RowsBy3 = Eigen::Matrix<double, Rows, 3, Eigen::RowMajor>;
     const BlendTerms blend(x[0], x[1], x[2], x[3], s);
     const PoseTerms pose(blend.q_at, blend.t_at);
-    Eigen::Matrix<double, Rows, 4, Eigen::RowMajor> jq;
-    Eigen::Matrix<double, Rows, 3, Eigen::RowMajor> jt;
+    RowsBy4 jq;
+    RowsBy3 jt;
     evaluateMatch(m_.match, pose, residuals, jacobians != nullptr ? jq.data() : nullptr,
                   jacobians != nullptr ? jt.data() : nullptr);
     if (jacobians == nullptr)
     {
       return true;
     }
-    using RowsBy4 = Eigen::Matrix<double, Rows, 4, Eigen::RowMajor>;
-    using RowsBy3 = Eigen::Matrix<double, Rows, 3, Eigen::RowMajor>;
     if (jacobians[0] != nullptr)
     {
       Eigen::Map<RowsBy4> jacobian(jacobians[0]);

@@ -12,16 +12,21 @@
 
 namespace aloam
 {
+/// The unnormalized blend of two quaternions' coefficients (x, y, z, w): (1 - s) a + s sign b, where `sign`
+/// (returned too) brings b onto a's hemisphere.
+inline Eigen::Vector4d blendCoefficients(const Eigen::Vector4d& a, const Eigen::Vector4d& b, double s, double& sign)
+{
+  sign = a.dot(b) < 0.0 ? -1.0 : 1.0;
+  return (1.0 - s) * a + s * sign * b;
+}
+
 /// The rotation a fraction `s` of the way from `a` to `b`: the normalized blend (nlerp) of the two unit
 /// quaternions on the same hemisphere, within a few thousandths of a degree of slerp over a sweep's turn.
 /// (spanCost differentiates the same blend.)
 inline Eigen::Quaterniond blendRotation(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b, double s)
 {
-  const double sign = a.coeffs().dot(b.coeffs()) < 0.0 ? -1.0 : 1.0;
-  Eigen::Quaterniond q;
-  q.coeffs() = (1.0 - s) * a.coeffs() + s * sign * b.coeffs();
-  q.normalize();
-  return q;
+  double sign = 1.0;
+  return Eigen::Quaterniond(blendCoefficients(a.coeffs(), b.coeffs(), s, sign).normalized());
 }
 
 /// The sensor's poses at the start and the end of a sweep (map <- sensor).
