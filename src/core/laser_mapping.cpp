@@ -276,7 +276,6 @@ bool LaserMapping::matchPlane(const Point& p, const Pose& pose, PlaneMatch& matc
 MatchSolveResult LaserMapping::solve(Pose& pose, int outer_iterations, MappingResult& result)
 {
   MatchSolveOptions options = matchSolveOptionsOf(config_);
-  options.soft_remap = config_.soft_remap;
   options.executor = executor_.get();
   options.outer_iterations = outer_iterations;
   const bool reuse = config_.reuse_searches;

@@ -189,6 +189,7 @@ void LaserOdometryNodelet::reconfigureCb(const LaserOdometryConfig& c)
   config.nearby_scan = c.nearby_scan;
   config.deskew = c.deskew;
   config.degeneracy_remap = c.degeneracy_remap;
+  config.soft_remap = c.soft_remap;
   config.time_scaling = c.time_scaling;
   config.nearby_elevation_deg = c.nearby_elevation_deg;
   config.motion_hypotheses = c.motion_hypotheses;

@@ -118,8 +118,8 @@ constexpr const char* kUsage =
     "                     a start and an end pose\n"
     "  --span-start-weight W\n"
     "                     laser_mapping's span_start_weight (default 3)\n"
-    "  --hard-remap       mapping keeps the prediction entirely along weak directions (laser_mapping's\n"
-    "                     soft_remap: false)\n"
+    "  --hard-remap       odometry and mapping keep the prediction entirely along weak directions\n"
+    "                     (laser_odometry's and laser_mapping's soft_remap: false)\n"
     "  --odometry-min-constraint X, --mapping-min-constraint X\n"
     "                     the stages' min_constraint (directions weaker than X are degenerate)\n";
 
@@ -613,6 +613,7 @@ int main(int argc, char** argv)
     config.odometry.nearby_elevation_deg = *opt.nearby_elevation_deg;
   }
   config.odometry.motion_hypotheses = config.odometry.motion_hypotheses && opt.motion_hypotheses;
+  config.odometry.soft_remap = config.odometry.soft_remap && opt.soft_remap;
   config.mapping.soft_remap = config.mapping.soft_remap && opt.soft_remap;
   if (opt.reject_occluded)
   {

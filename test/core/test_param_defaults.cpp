@@ -148,6 +148,7 @@ std::map<std::string, Defaults> structDefaults()
       { "nearby_scan", str(o.nearby_scan) },
       { "deskew", str(o.deskew) },
       { "degeneracy_remap", str(o.degeneracy_remap) },
+      { "soft_remap", str(o.soft_remap) },
       { "time_scaling", str(o.time_scaling) },
       { "nearby_elevation_deg", str(o.nearby_elevation_deg) },
       { "motion_hypotheses", str(o.motion_hypotheses) },

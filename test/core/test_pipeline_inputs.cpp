@@ -338,7 +338,7 @@ TEST(PipelineInputsTest, CorridorRemappingKeepsOnlyTheWeakDirection)
     kSceneLeaves
   };
   const char* const names[] = { "all-or-nothing", "hard remap", "soft remap", "soft remap, scene leaves" };
-  double final_error[4] = { 0.0, 0.0, 0.0, 0.0 };
+  double final_error[4] = { 0.0, 0.0, 0.0, 0.0 }, odometry_error[4] = { 0.0, 0.0, 0.0, 0.0 };
   std::size_t remapped[4] = { 0, 0, 0, 0 }, degraded[4] = { 0, 0, 0, 0 };
   for (const Mode mode : { kFallback, kHard, kSoft, kSceneLeaves })
   {
@@ -347,6 +347,7 @@ TEST(PipelineInputsTest, CorridorRemappingKeepsOnlyTheWeakDirection)
     config.odometry.degeneracy_remap = mode != kFallback;
     config.mapping.degeneracy_remap = mode != kFallback;
     config.mapping.soft_remap = mode == kSoft || mode == kSceneLeaves;
+    config.odometry.soft_remap = config.mapping.soft_remap;
     if (mode != kSceneLeaves)
     {
       config.mapping.leaf_min_scale = 1.0;
@@ -381,9 +382,12 @@ TEST(PipelineInputsTest, CorridorRemappingKeepsOnlyTheWeakDirection)
       }
       const Pose truth = ts::toPose(first_end.inverse() * walk(start + kPeriod));
       final_error[mode] = ts::translationError(out.mapping.pose, truth);
+      odometry_error[mode] = ts::translationError(out.odometry.pose, truth);
     }
-    std::printf("[ measured ] corridor walk, %s: final error %.3f m (%zu remapped, %zu degraded)\n", names[mode],
-                final_error[mode], remapped[mode], degraded[mode]);
+    std::printf(
+        "[ measured ] corridor walk, %s: final error %.3f m, odometry alone %.3f m (%zu remapped, %zu "
+        "degraded)\n",
+        names[mode], final_error[mode], odometry_error[mode], remapped[mode], degraded[mode]);
   }
   EXPECT_GT(degraded[kFallback], kCorridorSweeps / 2u);
   for (const Mode mode : { kHard, kSoft })
@@ -394,6 +398,9 @@ TEST(PipelineInputsTest, CorridorRemappingKeepsOnlyTheWeakDirection)
   }
   EXPECT_LT(final_error[kHard], 0.15);
   EXPECT_LT(final_error[kSoft], 0.3);
+  // Odometry's soft remapping keeps part of the step along its weak directions, which here are weak but
+  // real (measured: odometry alone 0.368 m soft, 0.402 m hard).
+  EXPECT_LT(odometry_error[kSoft], odometry_error[kHard]);
   EXPECT_LT(remapped[kSceneLeaves], kCorridorSweeps / 2u);
   EXPECT_EQ(degraded[kSceneLeaves], 0u);
   EXPECT_LT(final_error[kSceneLeaves], 0.15);

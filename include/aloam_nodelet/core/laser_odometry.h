@@ -46,8 +46,10 @@ struct LaserOdometryConfig
   /// the prediction and the deskew motion whatever the spacing (A-LOAM; right only when sweeps are
   /// scan_period apart). At a steady rate equal to scan_period both give the same result.
   bool time_scaling = true;
-  double huber_delta = 0.1;                 ///< robust loss scale (m)
-  int min_correspondences = 10;             ///< fewer matches: keep the motion prior, report degraded
+  double huber_delta = 0.1;  ///< robust loss scale (m)
+  /// Fewer matches: keep the motion prior, report degraded. A sweep of one ring gives about 30, which can
+  /// hold five directions and push the sixth far off; a real sweep gives hundreds.
+  int min_correspondences = 50;
   int min_last_corners = 10;                ///< previous sweep needs this many edge points to match against
   int min_last_surfs = 100;                 ///< ... and this many plane points
   double max_translation_per_sweep = 10.0;  ///< a larger solved motion is rejected as divergent (m)
@@ -60,6 +62,10 @@ struct LaserOdometryConfig
   /// with no constrained direction keeps the whole prediction. false: any weak direction keeps the whole
   /// prediction (all six degrees of freedom; A-LOAM-like all-or-nothing).
   bool degeneracy_remap = true;
+  /// With degeneracy_remap: a weak direction keeps the share eigenvalue / min_constraint of the solve's step
+  /// instead of none (PoseProblem::remap). A direction just under the threshold is mostly solved, one with
+  /// no constraint keeps the prediction. false: the prediction along every weak direction.
+  bool soft_remap = true;
   /// More degenerate directions than this: the whole prediction is kept (see MatchSolveOptions::max_degenerate).
   int max_degenerate_directions = 3;
   /// A point is an inlier when its match lies within this (m) of the solved motion; the share of inliers

@@ -167,6 +167,7 @@ MatchSolveOptions matchSolveOptionsOf(const StageConfig& config)
   options.lever_arm = config.constraint_lever_arm;
   options.min_constraint = config.min_constraint;
   options.remap = config.degeneracy_remap;
+  options.soft_remap = config.soft_remap;
   options.max_degenerate = config.max_degenerate_directions;
   options.inlier_residual = config.inlier_residual;
   return options;
