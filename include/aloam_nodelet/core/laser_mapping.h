@@ -105,8 +105,7 @@ struct LaserMappingConfig
   /// along the directions weaker than min_constraint. false: any weak direction keeps the whole prediction.
   bool degeneracy_remap = true;
   /// With degeneracy_remap, a weak direction keeps the share eigenvalue / min_constraint of the solve's
-  /// step instead of none (PoseProblem::remap). Mapping only: on the odometry, one poor sweep's weak
-  /// directions are not weak enough to be cut by it.
+  /// step instead of none (PoseProblem::remap), as in odometry.
   bool soft_remap = true;
   /// More degenerate directions than this: the whole prediction is kept (see MatchSolveOptions::max_degenerate).
   int max_degenerate_directions = 3;

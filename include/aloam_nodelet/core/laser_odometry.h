@@ -53,8 +53,8 @@ struct LaserOdometryConfig
   int min_last_corners = 10;                ///< previous sweep needs this many edge points to match against
   int min_last_surfs = 100;                 ///< ... and this many plane points
   double max_translation_per_sweep = 10.0;  ///< a larger solved motion is rejected as divergent (m)
-  /// Degeneracy: weaker constraint than this (PoseProblem::constraintStrength, rotations as the motion of
-  /// a point constraint_lever_arm metres away) keeps the motion prior.
+  /// Degeneracy: a direction constrained less than this (PoseProblem::constraintStrength, rotations as the
+  /// motion of a point constraint_lever_arm metres away) is weak (see degeneracy_remap and soft_remap).
   double min_constraint = 10.0;
   double constraint_lever_arm = 10.0;
   /// Degeneracy per direction (solution remapping): directions of the motion whose constraint (eigenvalue,
