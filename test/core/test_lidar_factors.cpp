@@ -10,6 +10,7 @@
 
 #include "aloam_nodelet/core/ceres_compat.h"
 #include "aloam_nodelet/core/lidar_factors.h"
+#include "test_support.h"
 
 namespace aloam
 {
@@ -164,19 +165,13 @@ TEST(LidarFactors, RobustResidualsGiveTheHuberCostAndGradient)
         near_kink[static_cast<std::size_t>(row)] = near;
       }
     }
-    constexpr double kStep = 1e-6;
+    const auto residuals = [&]() { return evaluate(batch, s.q, s.t).residual; };
     for (int block = 0; block < 2; ++block)
     {
       double* parameter = block == 0 ? s.q : s.t;
       for (int c = 0; c < (block == 0 ? 4 : 3); ++c)
       {
-        const double saved = parameter[c];
-        parameter[c] = saved + kStep;
-        const Eigen::VectorXd plus = evaluate(batch, s.q, s.t).residual;
-        parameter[c] = saved - kStep;
-        const Eigen::VectorXd minus = evaluate(batch, s.q, s.t).residual;
-        parameter[c] = saved;
-        Eigen::VectorXd numeric = (plus - minus) / (2.0 * kStep);
+        Eigen::VectorXd numeric = test_support::centralDifference(residuals, parameter[c]);
         Eigen::VectorXd analytic = block == 0 ? Eigen::VectorXd(b.dq.col(c)) : Eigen::VectorXd(b.dt.col(c));
         for (std::size_t row = 0; row < near_kink.size(); ++row)
         {

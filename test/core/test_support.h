@@ -229,5 +229,19 @@ inline bool ringOrdered(const Cloud& cloud)
   return true;
 }
 
+/// The central difference of `residuals()` by one of the parameters it reads, `coordinate` (restored
+/// afterwards): the numeric column that an analytic Jacobian is checked against.
+inline Eigen::VectorXd centralDifference(const std::function<Eigen::VectorXd()>& residuals, double& coordinate,
+                                         double step = 1e-6)
+{
+  const double kept = coordinate;
+  coordinate = kept + step;
+  const Eigen::VectorXd plus = residuals();
+  coordinate = kept - step;
+  const Eigen::VectorXd minus = residuals();
+  coordinate = kept;
+  return (plus - minus) / (2.0 * step);
+}
+
 }  // namespace test_support
 }  // namespace aloam

@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "aloam_nodelet/core/sweep_span.h"
+#include "test_support.h"
 
 namespace aloam
 {
@@ -109,24 +110,23 @@ void expectJacobiansMatchDifferences(const SpanMatch& match, int rows)
   {
     jacobian_pointers.push_back(jacobian.data());
   }
-  std::vector<double> residual(rows), plus(rows), minus(rows);
+  std::vector<double> residual(rows);
   ASSERT_TRUE(cost->Evaluate(parameters.data(), residual.data(), jacobian_pointers.data()));
-  constexpr double kStep = 1e-6;
+  const auto residuals = [&]()
+  {
+    Eigen::VectorXd r(rows);
+    EXPECT_TRUE(cost->Evaluate(parameters.data(), r.data(), nullptr));
+    return r;
+  };
   for (std::size_t b = 0; b < blocks.size(); ++b)
   {
     const int width = static_cast<int>(blocks[b].size());
     for (int c = 0; c < width; ++c)
     {
-      const double kept = blocks[b][c];
-      blocks[b][c] = kept + kStep;
-      ASSERT_TRUE(cost->Evaluate(parameters.data(), plus.data(), nullptr));
-      blocks[b][c] = kept - kStep;
-      ASSERT_TRUE(cost->Evaluate(parameters.data(), minus.data(), nullptr));
-      blocks[b][c] = kept;
+      const Eigen::VectorXd numeric = test_support::centralDifference(residuals, blocks[b][c]);
       for (int r = 0; r < rows; ++r)
       {
-        EXPECT_NEAR(jacobians[b][r * width + c], (plus[r] - minus[r]) / (2.0 * kStep), 1e-6)
-            << "block " << b << " column " << c << " row " << r;
+        EXPECT_NEAR(jacobians[b][r * width + c], numeric[r], 1e-6) << "block " << b << " column " << c << " row " << r;
       }
     }
   }
